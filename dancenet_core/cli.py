@@ -1,0 +1,40 @@
+"""`dancenet` command line. Each subcommand registers its parser here and runs lazily."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable
+
+from .errors import DanceNetError
+
+Handler = Callable[[argparse.Namespace], int]
+
+# Modules that define `add_parser(subparsers)`, which registers a subcommand and sets its `handler`
+# with `set_defaults(handler=...)`. Keep imports of heavy libraries inside the handlers.
+_COMMAND_MODULES: list[str] = []
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dancenet", description="Music-driven dance generation.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name in _COMMAND_MODULES:
+        importlib.import_module(f"dancenet_core.{name}").add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except DanceNetError as e:
+        print(f"dancenet: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("dancenet: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
