@@ -82,6 +82,8 @@ def fk_torch(
             pos.append(pos[p] + (rots[p] @ offsets[j].unsqueeze(-1)).squeeze(-1))
     world_r = torch.stack(rots, dim=-3)
     world_p = torch.stack(pos, dim=-2)
+    if not skeleton.end_sites:
+        return world_p, world_r, world_p[..., :0, :]
     sp = torch.as_tensor(skeleton.end_site_parents(), device=rotvecs.device)
     so = torch.as_tensor(skeleton.end_site_offsets(), dtype=rotvecs.dtype, device=rotvecs.device)
     ends = world_p[..., sp, :] + (world_r[..., sp, :, :] @ so.unsqueeze(-1)).squeeze(-1)

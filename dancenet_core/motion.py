@@ -121,4 +121,6 @@ class Motion:
             )
             return cls(z["rotations"], z["root_positions"], float(z["fps"]), skeleton)
         except (KeyError, ValueError, OSError) as e:
-            raise ValueError(f"{path} is not a DanceNet motion file (.npz from `dancenet generate`): {e}") from e
+            raise ValueError(
+                f"{path} is not a DanceNet motion file (.npz from `dancenet generate`): {e}"
+            ) from e
