@@ -1,0 +1,193 @@
+"""`dancenet data build`: the paired dataset of motion features and music, cached on disk.
+
+For each Dance with Melody sequence: fit our skeleton to its markers, put its feet on the floor, encode
+the paper's representation at the model's frame rate, and sample the song's music features at the
+times of the motion frames (song time = music_offset_s + t / fps, as the data README says).
+
+Frame rate: 25 fps, the capture's own. Resampling up to 30 or 60 fps would invent frames, make the
+dilated stack's 125-frame receptive field cover less time (5 s at 25 fps), and cost more to train.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DanceNetError
+from ..motion import Motion
+from ..representation import encode
+from ..skeleton import TOE_ENDS, Skeleton
+from .dance_with_melody import Sequence, load_positions, read_manifest
+from .fit import fit_errors, fit_sequence
+
+MODEL_FPS = 25.0
+BUILD_VERSION = "dataset-1"
+SPLIT_FILE = Path(__file__).resolve().parents[1] / "weights" / "song_split.json"
+
+
+def default_data_dir() -> Path:
+    """`$DANCENET_DATA`, else the shared data folder next to the repository."""
+    env = os.environ.get("DANCENET_DATA")
+    return Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "data"
+
+
+def dataset_cache_dir() -> Path:
+    env = os.environ.get("DANCENET_CACHE")
+    base = Path(env).expanduser() if env else Path.home() / ".cache" / "dancenet"
+    return base / BUILD_VERSION
+
+
+def music_at_frames(features: np.ndarray, feature_fps: float, times: np.ndarray) -> np.ndarray:
+    """Music features [T_music, F] (frame j centred at j / feature_fps) sampled at `times` (seconds)."""
+    pos = times * feature_fps
+    src = np.arange(len(features))
+    return np.stack([np.interp(pos, src, features[:, k]) for k in range(features.shape[1])], -1).astype(
+        np.float32
+    )
+
+
+def floor_offset(motion: Motion) -> float:
+    """Height of the floor under this clip: a low percentile of the lower toe end."""
+    toes = motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
+    return float(np.percentile(toes, 2))
+
+
+@dataclass
+class PairedSequence:
+    """One dance with its music, ready for training windows."""
+
+    seq: str
+    style: str
+    motion: np.ndarray  # [T, D] encoded motion features
+    mirrored: np.ndarray  # [T, D] the left/right mirror image, same music
+    music: np.ndarray  # [T, 15] music features at the motion frames
+    positions: np.ndarray  # [T, 22, 3] world positions of the body joints (for metrics)
+    offsets: np.ndarray  # performer skeleton offsets
+    fit_mean_cm: float
+    fit_p95_cm: float
+
+    def save(self, path: Path) -> None:
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
+        np.savez_compressed(tmp, seq=self.seq, style=self.style, motion=self.motion, mirrored=self.mirrored,
+                            music=self.music, positions=self.positions, offsets=self.offsets,
+                            fit=np.array([self.fit_mean_cm, self.fit_p95_cm]))
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: Path) -> PairedSequence:
+        z = np.load(path)
+        return cls(str(z["seq"]), str(z["style"]), z["motion"], z["mirrored"], z["music"], z["positions"],
+                   z["offsets"], float(z["fit"][0]), float(z["fit"][1]))
+
+
+def fitted_motion(seq: Sequence, out_dir: Path, fit_steps: int = 200) -> tuple[Motion, np.ndarray]:
+    """The fitted motion (feet on the floor, model rate) and its per-frame fit errors [T, K]; cached."""
+    motion_path, err_path = out_dir / f"{seq.seq}.motion.npz", out_dir / f"{seq.seq}.fiterr.npy"
+    if motion_path.is_file() and err_path.is_file():
+        return Motion.load(motion_path), np.load(err_path)
+    pos = load_positions(seq)
+    motion, targets = fit_sequence(pos, seq.fps, steps=fit_steps)
+    err = fit_errors(motion, pos, targets)
+    motion.root_positions[:, 1] -= floor_offset(motion)
+    if abs(seq.fps - MODEL_FPS) > 1e-9:
+        motion = motion.resampled(MODEL_FPS)
+    motion.save(motion_path)
+    np.save(err_path, err.astype(np.float32))
+    return motion, err
+
+
+def build_sequence(seq: Sequence, out_dir: Path) -> PairedSequence:
+    from ..features import FPS as MUSIC_FPS
+    from ..features import analyze_music
+
+    motion, err = fitted_motion(seq, out_dir)
+    analysis = analyze_music(seq.audio)
+    times = seq.music_offset_s + np.arange(motion.num_frames) / MODEL_FPS
+    music = music_at_frames(analysis.features, MUSIC_FPS, times)
+    paired = PairedSequence(
+        seq=seq.seq,
+        style=seq.style,
+        motion=encode(motion, floor=0.0),
+        mirrored=encode(motion.mirrored(), floor=0.0),
+        music=music,
+        positions=motion.positions()[:, :22].astype(np.float32),
+        offsets=motion.skeleton.offsets,
+        fit_mean_cm=float(err.mean() * 100),
+        fit_p95_cm=float(np.percentile(err, 95) * 100),
+    )
+    return paired
+
+
+def load_split(path: Path = SPLIT_FILE) -> dict:
+    if not path.is_file():
+        raise DanceNetError(f"song split {path} is missing; it ships with the package (reinstall)")
+    return json.loads(path.read_text())
+
+
+def build_dataset(data_dir: Path, out_dir: Path | None = None, progress: bool = True) -> list[PairedSequence]:
+    """Build (or reuse) every sequence's paired file; returns them all."""
+    from tqdm import tqdm
+
+    out_dir = out_dir or dataset_cache_dir()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    seqs = read_manifest(data_dir)
+    result = []
+    bar = tqdm(seqs, desc="dataset", unit="seq", disable=not progress)
+    for seq in bar:
+        path = out_dir / f"{seq.seq}.npz"
+        if path.is_file():
+            result.append(PairedSequence.load(path))
+            continue
+        bar.set_postfix_str(seq.seq)
+        paired = build_sequence(seq, out_dir)
+        paired.save(path)
+        result.append(paired)
+    return result
+
+
+def mean_skeleton(pairs: list[PairedSequence]) -> Skeleton:
+    """The skeleton generated dances use: the performers' average."""
+    return Skeleton(np.mean([p.offsets for p in pairs], axis=0))
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("data", help="build or inspect the training dataset")
+    dsub = p.add_subparsers(dest="data_command", required=True)
+    b = dsub.add_parser("build", help="fit skeletons, pair motion with music, cache on disk")
+    b.add_argument("--data", type=Path, default=None, help="the shared data folder (default: ../shared/data)")
+    b.add_argument("--out", type=Path, default=None, help="cache folder (default: ~/.cache/dancenet)")
+    b.set_defaults(handler=_cmd_build)
+    s = dsub.add_parser("show", help="draw a source frame and our fitted skeleton side by side")
+    s.add_argument("seq", help="sequence id, e.g. DANCE_W_1")
+    s.add_argument("--frame", type=int, default=None, help="frame index (default: the middle)")
+    s.add_argument("--data", type=Path, default=None)
+    s.add_argument("--out", type=Path, default=Path("frame.png"))
+    s.set_defaults(handler=_cmd_show)
+
+
+def _cmd_build(args: argparse.Namespace) -> int:
+    pairs = build_dataset(args.data or default_data_dir(), args.out)
+    split = load_split()
+    for name in ("train", "test"):
+        mins: dict[str, float] = {}
+        for p in pairs:
+            if p.seq in split[name]:
+                mins[p.style] = mins.get(p.style, 0.0) + len(p.motion) / MODEL_FPS / 60
+        print(f"{name}: " + ", ".join(f"{k} {v:.1f} min" for k, v in sorted(mins.items())))
+    fits = np.array([[p.fit_mean_cm, p.fit_p95_cm] for p in pairs])
+    print(f"fit error over {len(pairs)} sequences: mean {fits[:, 0].mean():.2f} cm "
+          f"(worst {fits[:, 0].max():.2f}), p95 {fits[:, 1].mean():.2f} cm (worst {fits[:, 1].max():.2f})")
+    return 0
+
+
+def _cmd_show(args: argparse.Namespace) -> int:
+    from .show import draw_fit
+
+    draw_fit(args.data or default_data_dir(), args.seq, args.frame, args.out)
+    print(f"wrote {args.out}")
+    return 0

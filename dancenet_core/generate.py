@@ -1,0 +1,154 @@
+"""Song -> dance: the one entry point the command line, the Blender add-on and batch mode share.
+
+Stages: analyse the music (cached), pick the style (the classifier, or the user's choice), encode the
+music context, sample DanceNet frame by frame, decode to a Motion, and clean the feet.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .data.build import music_at_frames
+from .errors import DanceNetError
+from .motion import Motion
+from .representation import decode
+
+# Sampling temperature (scales the mixture's sigma): the authors sample at 0.1; a little more keeps the
+# dance varied without noise showing up as jitter.
+DEFAULT_TEMPERATURE = 0.3
+
+Progress = Callable[[str, float], None]
+
+
+class GenerationCancelled(Exception):
+    """The user cancelled; nothing was produced."""
+
+
+@dataclass
+class GenerationResult:
+    motions: list[Motion]
+    beat_times: np.ndarray
+    downbeat_times: np.ndarray
+    tempo_bpm: float
+    duration_s: float
+    style: str
+    style_probabilities: dict[str, float]
+    timings: dict[str, float] = field(default_factory=dict)
+    contacts: list[np.ndarray] = field(default_factory=list)  # [T, 2] predicted foot contacts per take
+
+
+@lru_cache(maxsize=2)
+def load_bundle(path: str | None = None):  # noqa: ANN201 (lazy import keeps torch off the import path)
+    from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+
+    return DanceNetBundle.load(path or DEFAULT_BUNDLE)
+
+
+def available_styles(weights: str | None = None) -> list[str]:
+    """The styles the shipped model dances, from its metadata."""
+    return load_bundle(weights).styles
+
+
+def choose_style(
+    requested: str, features: np.ndarray, styles: list[str]
+) -> tuple[str, dict[str, float]]:
+    """The user's style, or the classifier's most probable style among those the dance model knows."""
+    if requested != "auto":
+        if requested not in styles:
+            raise DanceNetError(f"unknown style '{requested}'; choose auto or one of: {', '.join(styles)}")
+        return requested, {}
+    from .style import classify_features
+
+    probs = classify_features(features).probabilities
+    known = {s: p for s, p in probs.items() if s in styles}
+    if not known:
+        raise DanceNetError("the style classifier knows none of the dance model's styles; pass --style")
+    return max(known, key=known.get), probs
+
+
+def generate_dance(
+    song: str | Path,
+    style: str = "auto",
+    seed: int = 0,
+    temperature: float = DEFAULT_TEMPERATURE,
+    takes: int = 1,
+    footfix: bool = True,
+    progress: Progress | None = None,
+    should_cancel: Callable[[], bool] | None = None,
+    weights: str | None = None,
+) -> GenerationResult:
+    """Generate `takes` dances for a song. Same arguments, same seed: the same dance, bit for bit."""
+    from .features import FPS as MUSIC_FPS
+    from .features import analyze_music
+    from .model.sampler import CachedSampler, Sampling, music_conditioning
+
+    if takes < 1:
+        raise DanceNetError("takes must be at least 1")
+    if not temperature >= 0:
+        raise DanceNetError("temperature must be 0 or more (0 = the most likely dance)")
+    report = progress or (lambda _s, _f: None)
+    cancelled = should_cancel or (lambda: False)
+    timings: dict[str, float] = {}
+
+    t = time.perf_counter()
+    report("analysing music", 0.0)
+    analysis = analyze_music(song, progress=lambda f: report("analysing music", f))
+    timings["analysis_s"] = time.perf_counter() - t
+    if cancelled():
+        raise GenerationCancelled
+
+    t = time.perf_counter()
+    bundle = load_bundle(weights)
+    cfg = bundle.model.cfg
+    chosen, probs = choose_style(style, analysis.features, bundle.styles)
+    timings["style_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    n = max(2, int(round(analysis.duration_s * cfg.fps)))
+    music = music_at_frames(analysis.features, MUSIC_FPS, np.arange(n) / cfg.fps)
+    cond = music_conditioning(bundle.model, music, bundle.styles.index(chosen))
+    rng = np.random.default_rng(seed)
+    starts = bundle.start_frames[chosen]
+    first = bundle.normalizer.normalize(starts[rng.integers(len(starts), size=takes)])
+    timings["music_encoder_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    report("dancing", 0.0)
+    try:
+        frames, _ = CachedSampler(bundle.model).run(
+            first, cond, Sampling(temperature, rng), progress=lambda f: report("dancing", f),
+            should_stop=cancelled,
+        )
+    except InterruptedError as e:
+        raise GenerationCancelled from e
+    timings["generation_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    motions, contacts = [], []
+    from .representation import FeatureLayout
+
+    layout = FeatureLayout.for_skeleton(bundle.skeleton)
+    for take in frames:
+        feats = bundle.normalizer.denormalize(take)
+        motions.append(decode(feats, cfg.fps, bundle.skeleton))
+        contacts.append(feats[:, layout.contacts])
+    timings["decode_s"] = time.perf_counter() - t
+    if footfix:
+        t = time.perf_counter()
+        report("cleaning feet", 0.0)
+        from .footfix import fix_feet
+
+        motions = [fix_feet(m, c) for m, c in zip(motions, contacts, strict=True)]
+        timings["footfix_s"] = time.perf_counter() - t
+    report("done", 1.0)
+    return GenerationResult(
+        motions=motions, beat_times=analysis.beat_times, downbeat_times=analysis.downbeat_times,
+        tempo_bpm=analysis.tempo_bpm, duration_s=analysis.duration_s, style=chosen,
+        style_probabilities=probs, timings=timings, contacts=contacts,
+    )

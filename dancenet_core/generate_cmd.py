@@ -1,0 +1,102 @@
+"""`dancenet generate SONG -o DIR`: BVH + .npz per take and a JSON summary, with a progress bar."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import time
+from pathlib import Path
+
+from .errors import DanceNetError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    from .generate import DEFAULT_TEMPERATURE
+
+    p = sub.add_parser("generate", help="generate a dance for a song (BVH, .npz and a JSON summary)")
+    p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
+    p.add_argument("-o", "--out", type=Path, required=True, help="output folder (created if missing)")
+    p.add_argument("--style", default="auto", help="auto (the music's style) or a style the model knows")
+    p.add_argument("--seed", type=int, default=0, help="same seed, same dance")
+    p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
+                   help=f"variety of the dance, 0 = most likely (default {DEFAULT_TEMPERATURE})")
+    p.add_argument("--takes", type=int, default=1, help="number of different dances to generate")
+    p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
+    p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
+    p.add_argument("--render", action="store_true", help="also render a preview video with the music")
+    p.set_defaults(handler=run)
+
+
+def _stem(song: Path) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", song.stem) or "dance"
+
+
+def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .bvh import write_bvh
+    from .generate import generate_dance
+
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise DanceNetError(f"cannot create the output folder {args.out}: {e.strerror}") from e
+    bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}")
+    state = {"stage": ""}
+
+    def progress(stage: str, fraction: float) -> None:
+        if stage != state["stage"]:
+            state["stage"] = stage
+            bar.set_description_str(stage)
+            bar.n = 0
+        bar.n = int(100 * fraction)
+        bar.refresh()
+
+    t0 = time.perf_counter()
+    try:
+        result = generate_dance(args.song, style=args.style, seed=args.seed, temperature=args.temperature,
+                                takes=args.takes, footfix=not args.no_footfix, progress=progress,
+                                weights=str(args.weights) if args.weights else None)
+    finally:
+        bar.close()
+    stem = _stem(args.song)
+    files = []
+    t = time.perf_counter()
+    for k, motion in enumerate(result.motions, start=1):
+        name = stem if len(result.motions) == 1 else f"{stem}_take{k}"
+        write_bvh(args.out / f"{name}.bvh", motion)
+        motion.save(args.out / f"{name}.npz")
+        files += [f"{name}.bvh", f"{name}.npz"]
+    result.timings["writing_s"] = time.perf_counter() - t
+    if args.render:
+        from .render import render_motion
+
+        t = time.perf_counter()
+        for k, motion in enumerate(result.motions, start=1):
+            name = stem if len(result.motions) == 1 else f"{stem}_take{k}"
+            render_motion(motion, args.out / f"{name}.mp4", audio=args.song)
+            files.append(f"{name}.mp4")
+        result.timings["render_s"] = time.perf_counter() - t
+    result.timings["total_s"] = time.perf_counter() - t0
+    summary = {
+        "song": str(args.song),
+        "style": result.style,
+        "style_probabilities": result.style_probabilities,
+        "tempo_bpm": round(result.tempo_bpm, 2),
+        "duration_s": round(result.duration_s, 3),
+        "fps": result.motions[0].fps,
+        "frames": result.motions[0].num_frames,
+        "takes": len(result.motions),
+        "seed": args.seed,
+        "temperature": args.temperature,
+        "footfix": not args.no_footfix,
+        "beats": len(result.beat_times),
+        "downbeats": len(result.downbeat_times),
+        "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
+        "files": files,
+    }
+    (args.out / f"{stem}.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
+          f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
+    return 0

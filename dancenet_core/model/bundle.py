@@ -1,0 +1,70 @@
+"""A trained DanceNet with everything generation needs: config, weights, normaliser, styles, start
+frames and the skeleton its dances are decoded onto. One file, shipped in `dancenet_core/weights/`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..errors import DanceNetError
+from ..representation import Normalizer
+from ..skeleton import Skeleton
+from .dancenet import DanceNet, DanceNetConfig
+
+WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
+DEFAULT_BUNDLE = WEIGHTS_DIR / "dancenet.pt"
+
+
+@dataclass
+class DanceNetBundle:
+    model: DanceNet
+    normalizer: Normalizer
+    skeleton: Skeleton
+    start_frames: dict[str, np.ndarray]  # per style: [N, D] real first frames (unnormalised)
+    info: dict = field(default_factory=dict)  # training facts for the model card
+
+    @property
+    def styles(self) -> list[str]:
+        return list(self.model.cfg.styles)
+
+    def to_dict(self) -> dict:
+        return {
+            "config": self.model.cfg.to_dict(),
+            "state_dict": self.model.state_dict(),
+            "normalizer": {"mean": self.normalizer.mean, "std": self.normalizer.std,
+                           "constant": self.normalizer.constant},
+            "skeleton_offsets": self.skeleton.offsets,
+            "start_frames": self.start_frames,
+            "info": self.info,
+        }
+
+    def save(self, path: str | Path) -> None:
+        path = Path(path)
+        tmp = path.with_suffix(".tmp")
+        torch.save(self.to_dict(), tmp)
+        tmp.replace(path)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DanceNetBundle:
+        cfg = DanceNetConfig(**d["config"])
+        model = DanceNet(cfg)
+        model.load_state_dict(d["state_dict"])
+        model.eval()
+        n = d["normalizer"]
+        return cls(model, Normalizer(np.asarray(n["mean"]), np.asarray(n["std"]), np.asarray(n["constant"])),
+                   Skeleton(np.asarray(d["skeleton_offsets"])), dict(d["start_frames"]), dict(d["info"]))
+
+    @classmethod
+    def load(cls, path: str | Path = DEFAULT_BUNDLE) -> DanceNetBundle:
+        path = Path(path)
+        if not path.is_file():
+            raise DanceNetError(f"DanceNet weights not found at {path}; reinstall the package or pass --weights")
+        try:
+            d = torch.load(path, map_location="cpu", weights_only=False)
+            return cls.from_dict(d["bundle"] if "bundle" in d else d)
+        except (RuntimeError, KeyError, TypeError, ValueError) as e:
+            raise DanceNetError(f"{path} is not a DanceNet weights file ({e})") from e

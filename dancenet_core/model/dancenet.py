@@ -1,0 +1,168 @@
+"""DanceNet (paper section 4.4 and supplement): music context encoder, motion encoder, a stack of gated
+dilated residual layers conditioned on music and style, and a decoder to a Gaussian mixture plus
+foot-contact logits.
+
+`DanceNet.forward` is the teacher-forced pass used for training; `model/sampler.py` generates frame by
+frame with cached per-layer queues.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+
+@dataclass
+class DanceNetConfig:
+    """Sizes and settings; saved with the weights so a checkpoint rebuilds its own network."""
+
+    motion_dim: int  # size of one frame's feature vector (representation.FeatureLayout.size)
+    continuous_dim: int  # channels modelled by the mixture (the rest are foot contacts)
+    styles: list[str] = field(default_factory=list)
+    fps: float = 25.0
+    music_dim: int = 15
+    music_code: int = 30
+    music_hidden: int = 64
+    music_window: int = 200  # frames (8 s at 25 fps)
+    music_overlap: int = 50  # frames (2 s) when stitching windows at inference
+    style_dim: int = 5
+    motion_channels: int = 256
+    residual_channels: int = 64
+    skip_channels: int = 256
+    layers: int = 20
+    dilation_cycle: int = 5  # dilations 1, 2, 4, 8, 16 repeated
+    kernel_size: int = 2
+    mixtures: int = 1
+    min_log_sigma: float = float(np.log(0.03))
+    dropout_music: float = 0.1
+    input_dropout: float = 0.4
+
+    @property
+    def dilations(self) -> list[int]:
+        return [2 ** (i % self.dilation_cycle) for i in range(self.layers)]
+
+    @property
+    def receptive_field(self) -> int:
+        return 1 + (self.kernel_size - 1) * sum(self.dilations)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class MusicEncoder(nn.Module):
+    """Temporal convs (1-16-24-32 channels, kernel 2 in time, as on a 1-channel image) + Bi-LSTM -> code."""
+
+    def __init__(self, cfg: DanceNetConfig) -> None:
+        super().__init__()
+        chans = [1, 16, 24, 32]
+        self.convs = nn.ModuleList(nn.Conv2d(a, b, (2, 1)) for a, b in zip(chans[:-1], chans[1:], strict=True))
+        self.norms = nn.ModuleList(nn.BatchNorm2d(b) for b in chans[1:])
+        self.dropout = nn.Dropout(cfg.dropout_music)
+        self.lstm = nn.LSTM(32 * cfg.music_dim, cfg.music_hidden, batch_first=True, bidirectional=True)
+        self.out = nn.Linear(2 * cfg.music_hidden, cfg.music_code)
+
+    def forward(self, music: torch.Tensor) -> torch.Tensor:
+        """music [B, T, music_dim] at the motion rate -> code [B, T, music_code]."""
+        x = music.unsqueeze(1)  # [B, 1, T, F]
+        for conv, norm in zip(self.convs, self.norms, strict=True):
+            x = self.dropout(F.relu(norm(conv(F.pad(x, (0, 0, 0, 1))))))
+        b, c, t, f = x.shape
+        h, _ = self.lstm(x.permute(0, 2, 1, 3).reshape(b, t, c * f))
+        return self.out(h)
+
+
+class ResidualLayer(nn.Module):
+    """Gated dilated causal conv (separate filter and gate convs), conditioned through 1x1 convs."""
+
+    def __init__(self, cfg: DanceNetConfig, dilation: int) -> None:
+        super().__init__()
+        r = cfg.residual_channels
+        self.dilation = dilation
+        self.filter = nn.Conv1d(r, r, cfg.kernel_size, dilation=dilation)
+        self.gate = nn.Conv1d(r, r, cfg.kernel_size, dilation=dilation)
+        self.cond = nn.Conv1d(cfg.music_code + cfg.style_dim, 2 * r, 1)
+        self.res = nn.Conv1d(r, r, 1)
+        self.skip = nn.Conv1d(r, cfg.skip_channels, 1)
+
+    def forward(self, x: torch.Tensor, cond: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        xp = F.pad(x, (self.dilation * (self.filter.kernel_size[0] - 1), 0))  # causal: past frames only
+        c_f, c_g = self.cond(cond).chunk(2, dim=1)
+        h = torch.tanh(self.filter(xp) + c_f) * torch.sigmoid(self.gate(xp) + c_g)
+        return x + self.res(h), self.skip(h)
+
+
+class DanceNet(nn.Module):
+    def __init__(self, cfg: DanceNetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        m, r, s = cfg.motion_channels, cfg.residual_channels, cfg.skip_channels
+        self.music_encoder = MusicEncoder(cfg)
+        self.style_embedding = nn.Embedding(max(1, len(cfg.styles)), cfg.style_dim)
+        self.motion_encoder = nn.Sequential(
+            nn.Conv1d(cfg.motion_dim, m, 1), nn.ReLU(), nn.Conv1d(m, m, 1), nn.ReLU(), nn.Conv1d(m, r, 1)
+        )
+        self.layers = nn.ModuleList(ResidualLayer(cfg, d) for d in cfg.dilations)
+        out = cfg.mixtures * (1 + 2 * cfg.continuous_dim) + (cfg.motion_dim - cfg.continuous_dim)
+        self.decoder = nn.Sequential(nn.ReLU(), nn.Conv1d(s, s, 1), nn.ReLU(), nn.Conv1d(s, out, 1))
+        # Channels the mixture models (constant ones, e.g. resting fingers, are left out of the loss).
+        self.register_buffer("modelled", torch.ones(cfg.continuous_dim, dtype=torch.bool))
+        for p in self.parameters():
+            if p.dim() > 1:
+                nn.init.xavier_normal_(p)
+
+    def conditioning(self, music: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
+        """Music code + style embedding per frame, [B, code + style_dim, T]."""
+        code = self.music_encoder(music)
+        emb = self.style_embedding(style)[:, None, :].expand(-1, code.shape[1], -1)
+        return torch.cat([code, emb], dim=-1).transpose(1, 2)
+
+    def forward_frames(self, motion: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """Teacher-forced pass: frames [B, T, D] and conditioning [B, C, T] -> raw outputs [B, T, out].
+
+        Output t describes frame t + 1; `cond[..., t]` must be the conditioning of frame t + 1.
+        """
+        x = self.motion_encoder(motion.transpose(1, 2))
+        skip = 0.0
+        for layer in self.layers:
+            x, s = layer(x, cond)
+            skip = skip + s
+        return self.decoder(skip).transpose(1, 2)
+
+    def forward(self, motion: torch.Tensor, music: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
+        """Outputs for frames 1..T-1 given frames 0..T-2 and the music of frames 1..T-1."""
+        cond = self.conditioning(music, style)
+        return self.forward_frames(motion[:, :-1], cond[..., 1:])
+
+    def split(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Raw outputs -> (mixture logits [.., K], means [.., K, D], log sigmas [.., K, D], contact logits)."""
+        k, d = self.cfg.mixtures, self.cfg.continuous_dim
+        logits = out[..., :k]
+        mu = out[..., k : k + k * d].unflatten(-1, (k, d))
+        log_sigma = out[..., k + k * d : k + 2 * k * d].unflatten(-1, (k, d))
+        log_sigma = self.cfg.min_log_sigma + F.softplus(log_sigma - self.cfg.min_log_sigma)
+        return logits, mu, log_sigma, out[..., k + 2 * k * d :]
+
+
+def mixture_nll(
+    logits: torch.Tensor, mu: torch.Tensor, log_sigma: torch.Tensor, target: torch.Tensor, mask: torch.Tensor
+) -> torch.Tensor:
+    """Negative log-likelihood of `target` [..., D] under the diagonal Gaussian mixture, per modelled channel."""
+    z = (target.unsqueeze(-2) - mu) * torch.exp(-log_sigma)
+    per_dim = -0.5 * z**2 - log_sigma - 0.5 * float(np.log(2 * np.pi))
+    comp = (per_dim * mask).sum(-1) + torch.log_softmax(logits, dim=-1)
+    return -torch.logsumexp(comp, dim=-1) / mask.sum()
+
+
+def dancenet_loss(
+    model: DanceNet, out: torch.Tensor, target: torch.Tensor, contact_weight: float = 0.1
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Mixture NLL + contact_weight x foot-contact BCE (the paper's lambda = 0.1)."""
+    logits, mu, log_sigma, contact_logits = model.split(out)
+    d = model.cfg.continuous_dim
+    nll = mixture_nll(logits, mu, log_sigma, target[..., :d], model.modelled.to(out.dtype)).mean()
+    bce = F.binary_cross_entropy_with_logits(contact_logits, target[..., d:].clamp(0, 1))
+    return nll + contact_weight * bce, {"nll": float(nll.detach()), "bce": float(bce.detach())}

@@ -1,0 +1,237 @@
+"""Autoregressive generation: cached incremental inference (WaveNet-style per-layer queues) and the naive
+way (recompute the whole receptive field every frame, as the authors' release does) for comparison.
+
+The cached loop is compiled with numba: per frame it is a handful of small matrix-vector products, where
+torch's or numpy's per-call overhead (microseconds each, hundreds of calls per frame) would cost more
+than the arithmetic. Weights are re-laid out once: each layer's filter and gate convs fused into one
+matrix, the conditioning (music code + style) precomputed for the whole song, and all layers' skip convs
+applied as one matrix. Randomness comes in as arrays drawn by the caller's seeded generator, so a seed
+gives the same dance on any machine.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import torch
+
+from .dancenet import DanceNet
+
+Progress = Callable[[float], None]
+CHUNK = 250  # frames per compiled call, between which progress is reported and cancellation checked
+
+
+@torch.no_grad()
+def music_conditioning(model: DanceNet, music: np.ndarray, style: int) -> np.ndarray:
+    """Conditioning [T, C] for a whole song: 8-s windows overlapping by 2 s, cross-faded into one code.
+
+    Windows keep the encoder on the length it was trained on, so any song length works.
+    """
+    cfg = model.cfg
+    model.eval()
+    t = len(music)
+    win, ov = cfg.music_window, cfg.music_overlap
+    hop = win - ov
+    starts = [0] if t <= win else list(range(0, t - win, hop)) + [t - win]
+    total = np.zeros((t, cfg.music_code + cfg.style_dim))
+    weight = np.zeros((t, 1))
+    ramp = np.ones(min(win, t))
+    if len(starts) > 1:
+        ramp[:ov] = np.linspace(0.0, 1.0, ov + 2)[1:-1]
+        ramp[-ov:] = ramp[:ov][::-1].copy()
+    for i in range(0, len(starts), 32):  # bounded memory for long songs
+        chunk = starts[i : i + 32]
+        batch = torch.tensor(np.stack([music[s : s + win] for s in chunk]), dtype=torch.float32)
+        cond = model.conditioning(batch, torch.full((len(chunk),), style, dtype=torch.long))
+        for s, c in zip(chunk, cond.transpose(1, 2).numpy(), strict=True):
+            total[s : s + len(c)] += c * ramp[:, None]
+            weight[s : s + len(c)] += ramp[:, None]
+    return (total / weight).astype(np.float32)
+
+
+@dataclass
+class Sampling:
+    """How a frame is drawn from the mixture: temperature scales sigma; the draws come from `rng`."""
+
+    temperature: float
+    rng: np.random.Generator
+
+
+@numba.njit(cache=True)
+def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
+    frames, outputs, t0, t1, queues, dilations,
+    enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
+    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1,
+    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher,
+):  # fmt: skip
+    """Frames t0..t1-1 (frame t from frames < t). With `teacher` non-empty, feed those frames instead of
+    samples (used to check the cached pass equals the full forward). Outputs are recorded if sized."""
+    bsz = frames.shape[1]
+    n_layers = w_np.shape[0]
+    r = w_res.shape[1]
+    zero = np.float32(0.0)
+    gated = np.empty((n_layers, r), np.float32)
+    for t in range(t0, t1):
+        slot = t - 1
+        for b in range(bsz):
+            h = np.maximum(frames[t - 1, b] @ enc_w0 + enc_b0, zero)
+            h = np.maximum(h @ enc_w1 + enc_b1, zero)
+            x = h @ enc_w2 + enc_b2
+            for li in range(n_layers):
+                k = slot % dilations[li]
+                # a = [filter|gate input from this frame | what this frame adds d frames later]
+                a = x @ w_np[li]
+                for c in range(r):
+                    zf = a[c] + queues[li, k, b, c] + layer_cond[t, li, c]
+                    zg = a[r + c] + queues[li, k, b, r + c] + layer_cond[t, li, r + c]
+                    gated[li, c] = np.tanh(zf) * (0.5 + 0.5 * np.tanh(0.5 * zg))  # tanh x sigmoid
+                queues[li, k, b] = a[2 * r :]
+                x = x + gated[li] @ w_res[li] + b_res[li]
+            s = np.maximum(gated.reshape(n_layers * r) @ skip_w + skip_b, zero)
+            s = np.maximum(s @ dec_w0 + dec_b0, zero)
+            out = s @ dec_w1 + dec_b1
+            if outputs.shape[0] > 0:
+                outputs[t, b] = out
+            if teacher.shape[0] > 0:
+                frames[t, b] = teacher[t, b]
+                continue
+            # Mixture component: softmax over logits, chosen by a uniform draw.
+            m = out[0]
+            for i in range(1, mixtures):
+                m = max(m, out[i])
+            total = 0.0
+            for i in range(mixtures):
+                total += np.exp(out[i] - m)
+            u = unif[t, b] * total
+            comp = mixtures - 1
+            acc = 0.0
+            for i in range(mixtures):
+                acc += np.exp(out[i] - m)
+                if temperature <= 0.0:  # deterministic: the most likely component's mean
+                    if out[i] == m:
+                        comp = i
+                        break
+                elif u < acc:
+                    comp = i
+                    break
+            mu0 = mixtures + comp * cont
+            ls0 = mixtures + mixtures * cont + comp * cont
+            for j in range(cont):
+                if modelled[j]:
+                    raw = out[ls0 + j] - min_log_sigma
+                    soft = raw if raw > 20.0 else np.log1p(np.exp(raw))
+                    sigma = np.exp(min_log_sigma + soft)
+                    frames[t, b, j] = out[mu0 + j] + sigma * temperature * eps[t, b, j]
+                else:
+                    frames[t, b, j] = 0.0
+            c0 = mixtures + 2 * mixtures * cont
+            for j in range(frames.shape[2] - cont):
+                frames[t, b, cont + j] = 1.0 if out[c0 + j] > 0.0 else 0.0
+
+
+class CachedSampler:
+    """One step per frame: each layer keeps a queue of its inputs' contributions to frame t + dilation."""
+
+    def __init__(self, model: DanceNet) -> None:
+        cfg = model.cfg
+        self.cfg = cfg
+
+        def w(conv: torch.nn.Module) -> np.ndarray:
+            return np.ascontiguousarray(conv.weight.detach().double().numpy()[:, :, -1].T, np.float32)
+
+        def wk(conv: torch.nn.Module, tap: int) -> np.ndarray:
+            return np.ascontiguousarray(conv.weight.detach().double().numpy()[:, :, tap].T)
+
+        def b(conv: torch.nn.Module) -> np.ndarray:
+            return conv.bias.detach().double().numpy()
+
+        enc = model.motion_encoder
+        self.enc = [a for i in (0, 2, 4) for a in (w(enc[i]), b(enc[i]).astype(np.float32))]
+        # Tap 1 of a kernel-2 dilated conv sees x[t], tap 0 sees x[t - d]. One matrix per layer gives both
+        # this frame's filter|gate input and what this frame will contribute d frames later.
+        self.w_np = np.stack([
+            np.concatenate([wk(layer.filter, 1), wk(layer.gate, 1), wk(layer.filter, 0), wk(layer.gate, 0)], 1)
+            for layer in model.layers
+        ], dtype=np.float32)  # fmt: skip
+        self.cond_w = [wk(layer.cond, 0) for layer in model.layers]
+        self.cond_b = [np.concatenate([b(layer.filter), b(layer.gate)]) + b(layer.cond) for layer in model.layers]
+        self.w_res = np.stack([wk(layer.res, 0) for layer in model.layers], dtype=np.float32)
+        self.b_res = np.stack([b(layer.res) for layer in model.layers]).astype(np.float32)
+        self.skip_w = np.concatenate([wk(layer.skip, 0) for layer in model.layers], 0, dtype=np.float32)
+        self.skip_b = np.sum([b(layer.skip) for layer in model.layers], axis=0).astype(np.float32)
+        dec = model.decoder
+        self.dec = [w(dec[1]), b(dec[1]).astype(np.float32), w(dec[3]), b(dec[3]).astype(np.float32)]
+        self.modelled = model.modelled.numpy().astype(np.bool_)
+        self.dilations = np.array(cfg.dilations, dtype=np.int64)
+
+    def layer_conditioning(self, cond: np.ndarray) -> np.ndarray:
+        """Per frame and layer, the conditioning's contribution [T, L, 2R] (computed once per song)."""
+        return np.stack([cond @ cw + cb for cw, cb in zip(self.cond_w, self.cond_b, strict=True)], 1).astype(
+            np.float32
+        )
+
+    def run(
+        self,
+        first: np.ndarray,
+        cond: np.ndarray,
+        sampling: Sampling | None = None,
+        teacher: np.ndarray | None = None,
+        record_outputs: bool = False,
+        progress: Progress | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Generate len(cond) frames [B, T, D] from frame 0 `first` [B, D]; cond [T, C] conditions frame t.
+
+        With `teacher` [B, T, D], frames come from it instead of sampling (outputs are then comparable
+        with a teacher-forced forward pass). Returns the frames and, if asked, the raw outputs [B, T, O].
+        """
+        cfg = self.cfg
+        bsz, t_total, dim = len(first), len(cond), first.shape[1]
+        frames = np.zeros((t_total, bsz, dim), np.float32)
+        frames[0] = first
+        out_dim = self.dec[3].shape[0]
+        outputs = np.zeros((t_total if record_outputs else 0, bsz, out_dim), np.float32)
+        queues = np.zeros((cfg.layers, max(cfg.dilations), bsz, 2 * cfg.residual_channels), np.float32)
+        layer_cond = self.layer_conditioning(cond)
+        tf = np.ascontiguousarray(teacher.transpose(1, 0, 2), dtype=np.float32) if teacher is not None \
+            else np.zeros((0, bsz, dim), np.float32)
+        rng = sampling.rng if sampling is not None else np.random.default_rng(0)
+        temperature = sampling.temperature if sampling is not None else 1.0
+        cont = cfg.continuous_dim
+        for t0 in range(1, t_total, CHUNK):
+            t1 = min(t_total, t0 + CHUNK)
+            # Draws for this chunk only (bounded memory), indexed by absolute frame.
+            eps = np.zeros((t1, bsz, cont), np.float32)
+            unif = np.zeros((t1, bsz), np.float32)
+            if teacher is None:
+                eps[t0:] = rng.standard_normal((t1 - t0, bsz, cont), dtype=np.float32)
+                unif[t0:] = rng.random((t1 - t0, bsz), dtype=np.float32)
+            _generate(frames, outputs, t0, t1, queues, self.dilations, *self.enc,
+                      self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
+                      cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
+                      np.float32(temperature), eps, unif, tf)
+            if progress is not None:
+                progress(t1 / t_total)
+            if should_stop is not None and should_stop():
+                raise InterruptedError("generation cancelled")
+        return frames.transpose(1, 0, 2), (outputs.transpose(1, 0, 2) if record_outputs else None)
+
+
+@torch.no_grad()
+def naive_run(model: DanceNet, first: np.ndarray, cond: np.ndarray, teacher: np.ndarray) -> np.ndarray:
+    """The reference way: for each new frame, run the full stack over the last receptive-field frames.
+
+    Feeds `teacher` frames [B, T, D] (sampling does not change the cost); returns the outputs [B, T, O].
+    """
+    rf = model.cfg.receptive_field
+    bsz, t_total = len(first), len(cond)
+    cond_t = torch.tensor(cond, dtype=torch.float32).T.unsqueeze(0).expand(bsz, -1, -1)
+    frames = torch.tensor(teacher, dtype=torch.float32)
+    outs = []
+    for t in range(1, t_total):
+        lo = max(0, t - rf)
+        outs.append(model.forward_frames(frames[:, lo:t], cond_t[..., lo + 1 : t + 1])[:, -1])
+    return torch.stack([torch.zeros_like(outs[0])] + outs, 1).numpy()

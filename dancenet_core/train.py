@@ -1,0 +1,176 @@
+"""Train DanceNet on the paired dataset (supplement's settings, sized for a 2-core CPU).
+
+Runs in the background with checkpoints (resume with --resume), a fixed seed, and a JSON-lines log of
+train and test loss. Under `torchrun --nproc_per_node N` it trains data-parallel (gloo on CPU, nccl on
+GPUs); only rank 0 writes.
+
+    python -m dancenet_core.train --out runs/dancenet --minutes 100
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from .data.build import build_dataset, default_data_dir, load_split, mean_skeleton
+from .data.windows import WindowSampler
+from .model.bundle import DanceNetBundle
+from .model.dancenet import DanceNet, DanceNetConfig, dancenet_loss
+from .representation import FeatureLayout, Normalizer
+
+MIN_STYLE_SEQUENCES = 2  # a style danced in fewer training sequences cannot be learned or held out
+
+
+def shipped_styles(pairs: list, train_ids: set[str]) -> tuple[list[str], dict[str, str]]:
+    """Styles with enough training sequences, and the reason each other style is left out."""
+    counts: dict[str, int] = {}
+    for p in pairs:
+        counts[p.style] = counts.get(p.style, 0) + (p.seq in train_ids)
+    keep = sorted(s for s, c in counts.items() if c >= MIN_STYLE_SEQUENCES)
+    left_out = {s: f"only {c} training sequence(s)" for s, c in counts.items() if s not in keep}
+    return keep, left_out
+
+
+def _ddp() -> tuple[int, int]:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world > 1 and not torch.distributed.is_initialized():
+        backend = "nccl" if torch.cuda.is_available() else "gloo"
+        torch.distributed.init_process_group(backend)
+    rank = torch.distributed.get_rank() if world > 1 else 0
+    return rank, world
+
+
+def train(args: argparse.Namespace) -> Path:
+    rank, world = _ddp()
+    device = torch.device(f"cuda:{int(os.environ.get('LOCAL_RANK', 0))}" if torch.cuda.is_available() else "cpu")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(args.seed + rank)
+    rng = np.random.default_rng(args.seed + rank)
+
+    pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
+    split = load_split()
+    train_ids, test_ids = set(split["train"]), set(split["test"])
+    styles, left_out = shipped_styles(pairs, train_ids)
+    train_pairs = [p for p in pairs if p.seq in train_ids and p.style in styles]
+    test_pairs = [p for p in pairs if p.seq in test_ids and p.style in styles]
+    layout = FeatureLayout(55, 5)
+    norm = Normalizer.fit([p.motion for p in train_pairs] + [p.mirrored for p in train_pairs],
+                          binary=layout.contacts)
+    cfg = DanceNetConfig(motion_dim=layout.size, continuous_dim=layout.continuous.stop, styles=styles,
+                         fps=25.0, music_window=args.window)
+    model = DanceNet(cfg)
+    model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
+    model.to(device)
+    net = torch.nn.parallel.DistributedDataParallel(model) if world > 1 else model
+    opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
+    sched = torch.optim.lr_scheduler.MultiStepLR(opt, [int(args.steps * 0.77)], gamma=0.1)
+
+    train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
+    test_windows = WindowSampler(test_pairs, norm, styles, layout, window=args.window, stride=25,
+                                 seed=args.seed).fixed_windows(64)
+    start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
+    info = {
+        "data": "Dance with Melody (Tang et al. 2018), training split of dancenet_core/weights/song_split.json",
+        "train_sequences": sorted(p.seq for p in train_pairs),
+        "test_sequences": sorted(p.seq for p in test_pairs),
+        "styles_left_out": left_out,
+        "train_minutes": sum(len(p.motion) for p in train_pairs) / 25 / 60,
+        "windows": len(train_windows.index),
+        "cluster_sizes": train_windows.cluster_sizes.tolist(),
+        "settings": vars(args) | {"data": str(args.data)},
+    }
+
+    step, elapsed = 0, 0.0
+    ckpt = out / "checkpoint.pt"
+    if args.resume and ckpt.is_file():
+        state = torch.load(ckpt, map_location=device, weights_only=False)
+        model.load_state_dict(state["bundle"]["state_dict"])
+        opt.load_state_dict(state["optimizer"])
+        sched.load_state_dict(state["scheduler"])
+        step, elapsed = state["step"], state["elapsed"]
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        if rank == 0:
+            print(f"resumed at step {step} ({elapsed / 60:.1f} min)")
+
+    def bundle() -> DanceNetBundle:
+        return DanceNetBundle(model, norm, mean_skeleton(train_pairs), start_frames,
+                              info | {"steps": step, "train_seconds": elapsed})
+
+    def test_loss() -> dict[str, float]:
+        model.eval()
+        with torch.no_grad():
+            tb = test_windows
+            o = model(torch.tensor(tb.motion, device=device), torch.tensor(tb.music, device=device),
+                      torch.tensor(tb.style, device=device))
+            loss, parts = dancenet_loss(model, o, torch.tensor(tb.target[:, 1:], device=device))
+        model.train()
+        return {"test_loss": float(loss), "test_nll": parts["nll"], "test_bce": parts["bce"]}
+
+    log = open(out / "log.jsonl", "a") if rank == 0 else None
+    model.train()
+    t_last = time.time()
+    budget = args.minutes * 60
+    while step < args.steps and elapsed < budget:
+        b = train_windows.batch(rng, args.batch)
+        x = torch.tensor(b.motion, device=device)
+        x = F.dropout(x, cfg.input_dropout, training=True)
+        o = net(x, torch.tensor(b.music, device=device), torch.tensor(b.style, device=device))
+        loss, parts = dancenet_loss(model, o, torch.tensor(b.target[:, 1:], device=device))
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        opt.step()
+        sched.step()
+        step += 1
+        now = time.time()
+        elapsed += now - t_last
+        t_last = now
+        if rank == 0 and (step % args.log_every == 0 or step == 1):
+            rec = {"step": step, "minutes": round(elapsed / 60, 2), "lr": sched.get_last_lr()[0],
+                   "loss": float(loss), **parts}
+            if step % (args.log_every * 5) == 0 or step == 1:
+                rec |= test_loss()
+            log.write(json.dumps(rec) + "\n")
+            log.flush()
+        if rank == 0 and step % args.checkpoint_every == 0:
+            torch.save({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(),
+                        "scheduler": sched.state_dict(), "step": step, "elapsed": elapsed,
+                        "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}, ckpt)
+            t_last = time.time()
+    if rank == 0:
+        final = bundle()
+        final.info |= test_loss()
+        final.save(out / "dancenet.pt")
+        log.write(json.dumps({"step": step, "minutes": round(elapsed / 60, 2), "done": True,
+                              **test_loss()}) + "\n")
+        log.close()
+    return out / "dancenet.pt"
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    p.add_argument("--out", type=Path, default=Path("runs/dancenet"))
+    p.add_argument("--minutes", type=float, default=100.0, help="training time budget")
+    p.add_argument("--steps", type=int, default=6000, help="planned steps (lr drops by 10 at 77%%)")
+    p.add_argument("--batch", type=int, default=16)
+    p.add_argument("--window", type=int, default=200, help="frames per window (8 s at 25 fps)")
+    p.add_argument("--lr", type=float, default=4e-4)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--log-every", type=int, default=20)
+    p.add_argument("--checkpoint-every", type=int, default=200)
+    p.add_argument("--resume", action="store_true")
+    train(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    main()
