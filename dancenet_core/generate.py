@@ -17,7 +17,7 @@ import numpy as np
 from .data.build import music_at_frames
 from .errors import DanceNetError
 from .motion import Motion
-from .representation import decode
+from .representation import FeatureLayout, decode
 
 # Sampling temperature (scales the mixture's sigma): the authors sample at 0.1; a little more keeps the
 # dance varied without noise showing up as jitter.
@@ -129,23 +129,20 @@ def generate_dance(
         raise GenerationCancelled from e
     timings["generation_s"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    motions, contacts = [], []
-    from .representation import FeatureLayout
-
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
-    for take in frames:
-        feats = bundle.normalizer.denormalize(take)
-        motions.append(decode(feats, cfg.fps, bundle.skeleton))
-        contacts.append(feats[:, layout.contacts])
-    timings["decode_s"] = time.perf_counter() - t
+    takes_feats = [bundle.normalizer.denormalize(take) for take in frames]
     if footfix:
         t = time.perf_counter()
         report("cleaning feet", 0.0)
-        from .footfix import fix_feet
+        from .footfix import shipped_fixer
 
-        motions = [fix_feet(m, c) for m, c in zip(motions, contacts, strict=True)]
+        fixer = shipped_fixer()
+        takes_feats = [fixer(f) for f in takes_feats]
         timings["footfix_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]
+    contacts = [f[:, layout.contacts] for f in takes_feats]
+    timings["decode_s"] = time.perf_counter() - t
     report("done", 1.0)
     return GenerationResult(
         motions=motions, beat_times=analysis.beat_times, downbeat_times=analysis.downbeat_times,

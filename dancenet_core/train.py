@@ -19,7 +19,7 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from .data.build import build_dataset, default_data_dir, load_split, mean_skeleton
+from .data.build import PairedSequence, build_dataset, default_data_dir, load_split, mean_skeleton
 from .data.windows import WindowSampler
 from .model.bundle import DanceNetBundle
 from .model.dancenet import DanceNet, DanceNetConfig, dancenet_loss
@@ -47,16 +47,20 @@ def _ddp() -> tuple[int, int]:
     return rank, world
 
 
-def train(args: argparse.Namespace) -> Path:
+def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
+          split: dict | None = None) -> Path:
+    """Train; `pairs` and `split` default to the built dataset and the shipped song split."""
     rank, world = _ddp()
-    device = torch.device(f"cuda:{int(os.environ.get('LOCAL_RANK', 0))}" if torch.cuda.is_available() else "cpu")
+    local = int(os.environ.get("LOCAL_RANK", 0))
+    device = torch.device(f"cuda:{local}" if torch.cuda.is_available() else "cpu")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(args.seed + rank)
     rng = np.random.default_rng(args.seed + rank)
 
-    pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
-    split = load_split()
+    if pairs is None:
+        pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
+    split = split or load_split()
     train_ids, test_ids = set(split["train"]), set(split["test"])
     styles, left_out = shipped_styles(pairs, train_ids)
     train_pairs = [p for p in pairs if p.seq in train_ids and p.style in styles]
@@ -78,7 +82,7 @@ def train(args: argparse.Namespace) -> Path:
                                  seed=args.seed).fixed_windows(64)
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
-        "data": "Dance with Melody (Tang et al. 2018), training split of dancenet_core/weights/song_split.json",
+        "data": "Dance with Melody (Tang et al. 2018), training split of weights/song_split.json",
         "train_sequences": sorted(p.seq for p in train_pairs),
         "test_sequences": sorted(p.seq for p in test_pairs),
         "styles_left_out": left_out,
@@ -115,7 +119,7 @@ def train(args: argparse.Namespace) -> Path:
         model.train()
         return {"test_loss": float(loss), "test_nll": parts["nll"], "test_bce": parts["bce"]}
 
-    log = open(out / "log.jsonl", "a") if rank == 0 else None
+    log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
     model.train()
     t_last = time.time()
     budget = args.minutes * 60

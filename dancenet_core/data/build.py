@@ -26,7 +26,7 @@ from .dance_with_melody import Sequence, load_positions, read_manifest
 from .fit import fit_errors, fit_sequence
 
 MODEL_FPS = 25.0
-BUILD_VERSION = "dataset-1"
+BUILD_VERSION = "dataset-2"
 SPLIT_FILE = Path(__file__).resolve().parents[1] / "weights" / "song_split.json"
 
 

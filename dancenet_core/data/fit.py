@@ -220,6 +220,9 @@ def fit_sequence(
     dt2 = (1.0 / fps) ** 2
     spine = [J["spine1"], J["spine2"], J["spine3"]]
     knees = [J["left_knee"], J["right_knee"]]
+    elbows = [J["left_elbow"], J["right_elbow"]]
+    # Joints no marker constrains (their twist would wander): the ball of the foot and the wrists.
+    frozen = [J["left_foot"], J["right_foot"], J["left_wrist"], J["right_wrist"]]
     for step in range(steps):
         opt.zero_grad()
         wp, wr, _ = fk_torch(body, rot, root)
@@ -228,16 +231,21 @@ def fit_sequence(
         loss = (err * weights).mean() / weights.mean()
         acc = (wp[2:] - 2 * wp[1:-1] + wp[:-2]) / dt2  # m/s^2
         loss = loss + smooth_weight * 1e-6 * (acc**2).sum(-1).mean()
-        # Knees hinge about their local x axis; the three spine joints share the bend.
+        # Knees hinge about their local x axis, elbows about y; the three spine joints share the bend;
+        # joint rotations change smoothly (this fixes twists the markers leave open).
         loss = loss + 1e-3 * (rot[:, knees, 1:] ** 2).sum(-1).mean()
+        loss = loss + 1e-3 * (rot[:, elbows][..., [0, 2]] ** 2).sum(-1).mean()
+        loss = loss + 1e-3 * ((rot[1:, 1:] - rot[:-1, 1:]) ** 2).sum(-1).mean()
         loss = loss + 1e-3 * ((rot[:, spine] - rot[:, spine].mean(1, keepdim=True)) ** 2).sum(-1).mean()
         loss.backward()
+        rot.grad[:, frozen] = 0.0
         opt.step()
         sched.step()
         if progress and step % 50 == 0:
             print(f"  step {step}: rms {err.mean().sqrt().item() * 100:.2f} cm")
     rotations = rot0.copy()
     rotations[:, :BODY_JOINTS] = rot.detach().numpy()
+    rotations[:, frozen] = 0.0
     rotations[:, BODY_JOINTS:] = 0.0
     return Motion(rotations, root.detach().numpy(), fps, skeleton), targets
 

@@ -54,12 +54,19 @@ class DanceNetConfig:
 
 
 class MusicEncoder(nn.Module):
-    """Temporal convs (1-16-24-32 channels, kernel 2 in time, as on a 1-channel image) + Bi-LSTM -> code."""
+    """Temporal convs (1-16-24-32 channels, kernel 2 in time, as on a 1-channel image) + Bi-LSTM -> code.
+
+    As in the authors' code the last conv has stride 2 in time, so the Bi-LSTM (the costly, sequential
+    part on a CPU) runs at half the motion rate; its code is interpolated back to every motion frame.
+    """
 
     def __init__(self, cfg: DanceNetConfig) -> None:
         super().__init__()
         chans = [1, 16, 24, 32]
-        self.convs = nn.ModuleList(nn.Conv2d(a, b, (2, 1)) for a, b in zip(chans[:-1], chans[1:], strict=True))
+        self.convs = nn.ModuleList(
+            nn.Conv2d(a, b, (2, 1), stride=(2 if k == 2 else 1, 1))
+            for k, (a, b) in enumerate(zip(chans[:-1], chans[1:], strict=True))
+        )
         self.norms = nn.ModuleList(nn.BatchNorm2d(b) for b in chans[1:])
         self.dropout = nn.Dropout(cfg.dropout_music)
         self.lstm = nn.LSTM(32 * cfg.music_dim, cfg.music_hidden, batch_first=True, bidirectional=True)
@@ -67,12 +74,14 @@ class MusicEncoder(nn.Module):
 
     def forward(self, music: torch.Tensor) -> torch.Tensor:
         """music [B, T, music_dim] at the motion rate -> code [B, T, music_code]."""
+        frames = music.shape[1]
         x = music.unsqueeze(1)  # [B, 1, T, F]
         for conv, norm in zip(self.convs, self.norms, strict=True):
             x = self.dropout(F.relu(norm(conv(F.pad(x, (0, 0, 0, 1))))))
         b, c, t, f = x.shape
         h, _ = self.lstm(x.permute(0, 2, 1, 3).reshape(b, t, c * f))
-        return self.out(h)
+        code = self.out(h).transpose(1, 2)  # [B, code, T / 2]
+        return F.interpolate(code, size=frames, mode="linear", align_corners=False).transpose(1, 2)
 
 
 class ResidualLayer(nn.Module):
