@@ -50,6 +50,13 @@ def load_bundle(path: str | None = None):  # noqa: ANN201 (lazy import keeps tor
     return DanceNetBundle.load(path or DEFAULT_BUNDLE)
 
 
+@lru_cache(maxsize=1)
+def _style_model():  # noqa: ANN202 (lazy import keeps torch off the import path)
+    from .style import StyleModel
+
+    return StyleModel.load()
+
+
 def available_styles(weights: str | None = None) -> list[str]:
     """The styles the shipped model dances, from its metadata."""
     return load_bundle(weights).styles
@@ -63,9 +70,8 @@ def choose_style(
         if requested not in styles:
             raise DanceNetError(f"unknown style '{requested}'; choose auto or one of: {', '.join(styles)}")
         return requested, {}
-    from .style import classify_features
-
-    probs = classify_features(features).probabilities
+    result = _style_model().classify(features)
+    probs = {s: float(p) for s, p in zip(result.styles, result.probabilities, strict=True)}
     known = {s: p for s, p in probs.items() if s in styles}
     if not known:
         raise DanceNetError("the style classifier knows none of the dance model's styles; pass --style")
@@ -92,6 +98,8 @@ def generate_dance(
         raise DanceNetError("takes must be at least 1")
     if not temperature >= 0:
         raise DanceNetError("temperature must be 0 or more (0 = the most likely dance)")
+    if not Path(song).is_file():
+        raise DanceNetError(f"song not found: {song} (check the path)")
     report = progress or (lambda _s, _f: None)
     cancelled = should_cancel or (lambda: False)
     timings: dict[str, float] = {}

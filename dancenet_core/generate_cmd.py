@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise DanceNetError(f"cannot create the output folder {args.out}: {e.strerror}") from e
-    bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}")
+    bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}", delay=0.5,
+               leave=False)
     state = {"stage": ""}
 
     def progress(stage: str, fraction: float) -> None:

@@ -117,7 +117,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
                       torch.tensor(tb.style, device=device))
             loss, parts = dancenet_loss(model, o, torch.tensor(tb.target[:, 1:], device=device))
         model.train()
-        return {"test_loss": float(loss), "test_nll": parts["nll"], "test_bce": parts["bce"]}
+        return {"test_loss": loss.item(), "test_nll": parts["nll"], "test_bce": parts["bce"]}
 
     log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
     model.train()
@@ -140,7 +140,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
         t_last = now
         if rank == 0 and (step % args.log_every == 0 or step == 1):
             rec = {"step": step, "minutes": round(elapsed / 60, 2), "lr": sched.get_last_lr()[0],
-                   "loss": float(loss), **parts}
+                   "loss": loss.item(), **parts}
             if step % (args.log_every * 5) == 0 or step == 1:
                 rec |= test_loss()
             log.write(json.dumps(rec) + "\n")
