@@ -250,7 +250,46 @@ def fit_sequence(
     return Motion(rotations, root.detach().numpy(), fps, skeleton), targets
 
 
+# Markers on the sides of the head: they set the head's turn but are not joints, so the reported fit
+# error (matched joints) leaves them out.
+ORIENTATION_ONLY = ("head_l", "head_r")
+
+# Each joint target's parent along the body's chains, for the stretch analysis.
+_CHAIN_PARENT = {"head": "pelvis"} | {
+    f"{side}_{child}": ("pelvis" if parent == "pelvis" else f"{side}_{parent}")
+    for side in ("left", "right")
+    for child, parent in (("hip", "pelvis"), ("knee", "hip"), ("ankle", "knee"), ("toe", "ankle"),
+                          ("shoulder", "pelvis"), ("elbow", "shoulder"), ("wrist", "elbow"))
+}
+
+
+def joint_columns(targets: list[Target]) -> list[int]:
+    return [k for k, t in enumerate(targets) if t.name not in ORIENTATION_ONLY]
+
+
 def fit_errors(motion: Motion, pos: np.ndarray, targets: list[Target]) -> np.ndarray:
-    """Per-frame, per-target distances (metres) between our fitted points and the data, [T, K]."""
+    """Per-frame distances (metres) between our fitted joints and the data's, [T, K] (matched joints)."""
     got = model_positions(motion.skeleton, motion.rotations, motion.root_positions, targets)
-    return np.linalg.norm(got - target_positions(pos, targets), axis=-1)
+    cols = joint_columns(targets)
+    return np.linalg.norm(got - target_positions(pos, targets), axis=-1)[:, cols]
+
+
+def stretch_errors(motion: Motion, pos: np.ndarray, targets: list[Target], along_chain: bool = True
+                   ) -> np.ndarray:
+    """Marker stretch that a rigid skeleton cannot follow, [T, K] (matched joints): the difference between
+    the markers' distance and our constant bone length, frame by frame, for each joint's own bone and,
+    with `along_chain`, summed over the bones from the pelvis (an upper bound of its effect).
+    """
+    got = model_positions(motion.skeleton, motion.rotations, motion.root_positions, targets)
+    want = target_positions(pos, targets)
+    idx = {t.name: k for k, t in enumerate(targets)}
+    out = np.zeros((len(pos), len(targets)))
+    for t in targets:
+        name, acc = t.name, np.zeros(len(pos))
+        while name in _CHAIN_PARENT:
+            a, b = idx[name], idx[_CHAIN_PARENT[name]]
+            acc += np.abs(np.linalg.norm(want[:, a] - want[:, b], axis=-1)
+                          - np.linalg.norm(got[:, a] - got[:, b], axis=-1))
+            name = _CHAIN_PARENT[name] if along_chain else ""
+        out[:, idx[t.name]] = acc
+    return out[:, joint_columns(targets)]

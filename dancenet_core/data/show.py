@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import DanceNetError
 from .dance_with_melody import P, load_positions, read_manifest
 

@@ -65,6 +65,6 @@ class DanceNetBundle:
             raise DanceNetError(f"DanceNet weights not found at {path}; reinstall the package or pass --weights")
         try:
             d = torch.load(path, map_location="cpu", weights_only=False)
-            return cls.from_dict(d["bundle"] if "bundle" in d else d)
+            return cls.from_dict(d.get("bundle", d))
         except (RuntimeError, KeyError, TypeError, ValueError) as e:
             raise DanceNetError(f"{path} is not a DanceNet weights file ({e})") from e

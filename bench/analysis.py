@@ -1,0 +1,96 @@
+"""Music analysis speed: seconds per minute of audio, cold (empty cache) and cached, and peak memory.
+
+Usage: `python bench/analysis.py [--song PATH] [--synthetic-minutes M] [--workers N]`. Without --song it
+takes DANCE_W_1 from $DANCENET_DATA (default <repo>/../shared/data), else a synthetic song. Prints JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+
+from dancenet_core.audio import MADMOM_SAMPLE_RATE
+from dancenet_core.features import analyze_music
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def synthetic_song(path: Path, minutes: float) -> Path:
+    """Chords on a 120 BPM pulse, written in one-minute pieces so that even 30 minutes stay cheap."""
+    sr = MADMOM_SAMPLE_RATE
+    rng = np.random.default_rng(0)
+    with sf.SoundFile(str(path), "w", samplerate=sr, channels=1, format="FLAC") as f:
+        for m in range(int(np.ceil(minutes))):
+            t = m * 60 + np.arange(int(min(60, 60 * (minutes - m)) * sr)) / sr
+            root = 220 * 2 ** (np.floor(t / 2) % 4 * 5 / 12)
+            tone = sum(np.sin(2 * np.pi * root * r * t) for r in (1, 1.26, 1.5)) / 3
+            pulse = 0.5 + 0.5 * np.exp(-(t % 0.5) / 0.05)
+            f.write((0.4 * pulse * tone + 0.01 * rng.standard_normal(len(t))).astype(np.float32))
+    return path
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--song", help="audio file to analyse")
+    parser.add_argument("--synthetic-minutes", type=float, help="analyse a synthetic song this long instead")
+    parser.add_argument("--workers", type=int, help="worker processes (default: up to 2)")
+    args = parser.parse_args()
+    data = Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data"))
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.synthetic_minutes:
+            song, kind = synthetic_song(Path(tmp) / "synthetic.flac", args.synthetic_minutes), "synthetic"
+        elif args.song:
+            song, kind = Path(args.song), "given"
+        elif (data / "dance_with_melody" / "DANCE_W_1.ogg").is_file():
+            song, kind = data / "dance_with_melody" / "DANCE_W_1.ogg", "real"
+        else:
+            song, kind = synthetic_song(Path(tmp) / "synthetic.flac", 3.0), "synthetic (no data found)"
+        cache = Path(tmp) / "cache"
+        t0 = time.perf_counter()
+        a = analyze_music(song, cache_dir=cache, workers=args.workers)
+        cold = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        analyze_music(song, cache_dir=cache, workers=args.workers)
+        warm = time.perf_counter() - t0
+    minutes = a.duration_s / 60
+    rss = {
+        who: resource.getrusage(r).ru_maxrss / 1024
+        for who, r in (("main", resource.RUSAGE_SELF), ("largest_worker", resource.RUSAGE_CHILDREN))
+    }
+    print(
+        json.dumps(
+            {
+                "song": song.name,
+                "kind": kind,
+                "audio_minutes": round(minutes, 2),
+                "frames": list(a.features.shape),
+                "beats": len(a.beat_times),
+                "tempo_bpm": round(a.tempo_bpm, 1),
+                "cold_s": round(cold, 2),
+                "cached_s": round(warm, 4),
+                "cold_s_per_audio_min": round(cold / minutes, 2),
+                "cached_s_per_audio_min": round(warm / minutes, 5),
+                "cold_over_cached": round(cold / warm, 1),
+                "peak_rss_mib": {k: round(v) for k, v in rss.items()},
+                "workers": args.workers or min(2, os.cpu_count() or 1),
+                "cpu": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+                "load_average_1min": round(os.getloadavg()[0], 2),
+            },
+            indent=1,
+        )
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

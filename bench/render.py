@@ -1,0 +1,164 @@
+"""Preview rendering speed: pyrender (what `dancenet render` uses) vs Blender's Workbench engine.
+
+Usage: `python bench/render.py [--frames 120] [--width 640] [--height 360] [--engine all]`. Prints JSON.
+
+The same synthetic 55-joint dance is drawn by both. pyrender: frames per second through `iter_frames`
+(forward kinematics, drawing, read-back), and through `render_motion` (the same plus H.264 encoding in
+ffmpeg). Blender (only when `bpy` imports): the add-on's armature and mannequin mesh keyed with the dance,
+a floor and a fixed camera, Workbench with FXAA and shadows, one `render(write_still=True)` per frame.
+Each engine runs in its own child process, so their OpenGL contexts and start-up costs stay apart;
+the first frame (context, shader compiles) is timed on its own as `first_frame_s`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from dancenet_core.motion import Motion  # noqa: E402
+from dancenet_core.skeleton import DEFAULT_SKELETON  # noqa: E402
+
+
+def synthetic_dance(frames: int, fps: float = 30.0) -> Motion:
+    """Every joint swinging at its own rate, the root swaying and travelling a little."""
+    rng = np.random.default_rng(0)
+    t = np.arange(frames)[:, None, None] / fps
+    shape = (1, DEFAULT_SKELETON.num_joints, 3)
+    phase = 2 * np.pi * rng.uniform(0.3, 2, shape) * t + rng.uniform(0, 6, shape)
+    rot = rng.uniform(-0.5, 0.5, shape) * np.sin(phase)
+    t1 = t[:, 0, 0]
+    height = np.full(frames, DEFAULT_SKELETON.rest_pelvis_height())
+    root = np.column_stack([0.4 * np.sin(t1), height, 0.2 * np.sin(0.5 * t1)])
+    return Motion(rot, root, fps)
+
+
+def bench_pyrender(frames: int, width: int, height: int) -> dict[str, object]:
+    from dancenet_core.render import gl_platform, iter_frames, render_motion
+
+    motion = synthetic_dance(frames + 1)
+    t = time.perf_counter()
+    platform_ = gl_platform()
+    probe_s = time.perf_counter() - t
+    t = time.perf_counter()
+    images = iter_frames(motion, None, width, height)
+    next(images)
+    first_s = time.perf_counter() - t
+    t = time.perf_counter()
+    count = sum(1 for _ in images)
+    draw_s = time.perf_counter() - t
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        render_motion(motion[1:], Path(tmp) / "bench.mp4", width=width, height=height)
+        video_s = time.perf_counter() - t
+    return {
+        "engine": "pyrender", "gl_platform": platform_, "platform_probe_s": round(probe_s, 2),
+        "first_frame_s": round(first_s, 3), "frames": count, "frames_per_s": round(count / draw_s, 2),
+        "video_frames_per_s": round(frames / video_s, 2),
+        "video_note": "render_motion end to end: scene set-up, drawing, H.264 encoding, mp4 written",
+    }  # fmt: skip
+
+
+def bench_blender(frames: int, width: int, height: int, user: str) -> dict[str, object]:
+    os.environ["HOME"] = user  # keep Blender's user folders out of the real home
+    for var in ("BLENDER_USER_RESOURCES", "BLENDER_USER_CONFIG", "BLENDER_USER_SCRIPTS",
+                "BLENDER_USER_DATAFILES", "BLENDER_USER_EXTENSIONS"):
+        os.environ[var] = os.path.join(user, var.lower())
+    import bpy
+
+    from blender_addon import keyframes, rig
+    from dancenet_core.skeleton import JOINT_NAMES
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.fps = 30
+    arm = rig.create_rig(bpy.context, with_mesh=True)
+    keyframes.apply_motion(arm, synthetic_dance(frames + 1), {n: n for n in JOINT_NAMES}, "bench", 1, 30)
+    bpy.ops.mesh.primitive_plane_add(size=20.0)
+    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    camera.data.lens = 28.0
+    camera.location, camera.rotation_euler = (0.0, -4.5, 1.0), (np.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.show_shadows = True
+    scene.display.render_aa = "FXAA"
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.join(user, "frame.png")
+
+    t = time.perf_counter()
+    scene.frame_set(1)
+    bpy.ops.render.render(write_still=True)
+    first_s = time.perf_counter() - t
+    t = time.perf_counter()
+    for f in range(2, frames + 2):
+        scene.frame_set(f)
+        bpy.ops.render.render(write_still=True)
+    draw_s = time.perf_counter() - t
+    return {
+        "engine": "blender_workbench", "blender": bpy.app.version_string, "first_frame_s": round(first_s, 3),
+        "frames": frames, "frames_per_s": round(frames / draw_s, 2),
+        "note": "frame_set (armature + mesh deform) and render(write_still=True) to PNG per frame",
+    }  # fmt: skip
+
+
+def _child(engine: str, args: argparse.Namespace) -> dict[str, object]:
+    """Run one engine's benchmark in a fresh interpreter; its JSON, or why it could not run."""
+    cmd = [sys.executable, __file__, "--engine", engine, "--frames", str(args.frames),
+           "--width", str(args.width), "--height", str(args.height)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = [line for line in proc.stderr.splitlines() if line.strip()]
+        return {"engine": engine, "error": lines[-1] if lines else f"exit status {proc.returncode}"}
+    return json.loads(proc.stdout)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=120)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=360)
+    parser.add_argument("--engine", choices=["all", "pyrender", "blender"], default="all")
+    args = parser.parse_args()
+    if args.engine == "pyrender":
+        result: dict[str, object] = bench_pyrender(args.frames, args.width, args.height)
+    elif args.engine == "blender":
+        # Blender prints a line per saved frame on fd 1: keep stdout for the JSON alone
+        stdout = os.dup(1)
+        with tempfile.TemporaryDirectory(prefix="dancenet-bench-", ignore_cleanup_errors=True) as user:
+            with open(os.devnull, "w") as null:
+                os.dup2(null.fileno(), 1)
+            try:
+                result = bench_blender(args.frames, args.width, args.height, user)
+            finally:
+                sys.stdout.flush()
+                os.dup2(stdout, 1)
+    else:
+        import importlib.util
+
+        results = [_child("pyrender", args)]
+        if importlib.util.find_spec("bpy") is not None:
+            results.append(_child("blender", args))
+        result = {
+            "width": args.width, "height": args.height, "frames": args.frames, "results": results,
+            "cpu_count": os.cpu_count(), "load_average": [round(x, 2) for x in os.getloadavg()],
+            "machine": platform.processor() or platform.machine(),
+        }  # fmt: skip
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()

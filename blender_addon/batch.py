@@ -1,0 +1,127 @@
+"""Batch mode: dances for many songs, no interface.
+
+    blender --background --python blender_addon/batch.py -- SONG... --out DIR [--fbx] [--bvh] [--render]
+    python blender_addon/batch.py SONG... --out DIR [...]          (Blender as a Python module, pip bpy)
+
+Each song gets DIR/<song>/ with <song>.blend (rig, mannequin, the song's strip, beat markers, one action
+per take) and the exports asked for. One summary line per song; the exit status is 1 if any song
+failed, after the others have finished.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import bpy
+
+
+def _addon() -> SimpleNamespace:
+    """The add-on modules batch mode uses, from the package this file sits in (`blender_addon` in a
+    checkout, `dancenet` in an extension); importing the package sets up the core's import paths."""
+    here = Path(__file__).resolve().parent
+    if str(here.parent) not in sys.path:
+        sys.path.insert(0, str(here.parent))
+    modules = ("pipeline", "export", "render")
+    return SimpleNamespace(**{m: importlib.import_module(f"{here.name}.{m}") for m in modules})
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 640x360, got {text!r}") from None
+    if w < 16 or h < 16 or w % 2 or h % 2:
+        raise argparse.ArgumentTypeError("width and height must be even and at least 16 (H.264)")
+    return w, h
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="batch.py", description="Generate dances for songs, one folder each.")
+    p.add_argument("songs", nargs="+", type=Path, help="audio files")
+    p.add_argument("--out", type=Path, required=True, help="output folder (one subfolder per song)")
+    p.add_argument("--style", default="auto", help="dance style, or auto (the classifier picks)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--temperature", type=float, default=0.3, help="0 = the most likely dance (default 0.3)")
+    p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
+    p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
+    p.add_argument("--fps", type=int, help="scene frame rate (default: the model's own rate, no resampling)")
+    p.add_argument("--fbx", action="store_true", help="also write <song>.fbx")
+    p.add_argument("--bvh", action="store_true", help="also write <song>.bvh")
+    p.add_argument("--render", action="store_true", help="also render <song>.mp4 (Workbench, with the song)")
+    p.add_argument("--resolution", type=_resolution, default=(640, 360), help="render size (default 640x360)")
+    return p.parse_args(argv)
+
+
+def run_song(
+    addon: SimpleNamespace, song: Path, args: argparse.Namespace, generator: Callable[..., Any] | None
+) -> str:
+    """Generate, save and export one song; returns its summary line. Raises on failure."""
+    pipeline = addon.pipeline
+    started = time.perf_counter()
+    song = pipeline.check_song(song)
+    generator = generator or pipeline.load_generator()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    context = bpy.context
+    scene = context.scene
+    request = pipeline.GenerationRequest(
+        song, args.style, args.seed, args.temperature, args.takes, args.footfix
+    )
+    result = generator(**request.kwargs())
+    scene.render.fps, scene.render.fps_base = args.fps or round(result.motions[0].fps), 1.0
+    applied = pipeline.apply_result(context, pipeline.Plan(request), result)
+
+    out = args.out / song.stem
+    out.mkdir(parents=True, exist_ok=True)
+    rig = bpy.data.objects[applied.rig]
+    written = []
+    if args.bvh:
+        written.append(addon.export.export_bvh(context, rig, out / f"{song.stem}.bvh"))
+    if args.fbx:
+        written.append(addon.export.export_fbx(context, rig, out / f"{song.stem}.fbx"))
+    if args.render:
+        addon.render.setup_preview(scene, rig, out / f"{song.stem}.mp4", args.resolution)
+    blend = out / f"{song.stem}.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    written.insert(0, blend)
+    if args.render:
+        written.append(addon.render.render_preview(scene))
+    seconds = (applied.frame_end - applied.frame_start + 1) / scene.render.fps
+    takes = f"{len(applied.actions)} takes" if len(applied.actions) > 1 else "1 take"
+    files = ", ".join(p.name for p in written)
+    return (
+        f"OK      {song.name}: {applied.style}, {seconds:.1f} s, {takes}, {result.tempo_bpm:.0f} BPM -> "
+        f"{out} ({files}) in {time.perf_counter() - started:.1f} s"
+    )
+
+
+def main(argv: list[str] | None = None, generator: Callable[..., Any] | None = None) -> int:
+    """Run the batch; `generator` defaults to the core's generate_dance."""
+    if argv is None:
+        argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
+    args = parse_args(argv)
+    addon = _addon()
+    from dancenet_core.errors import DanceNetError  # importable once the add-on has set up its paths
+
+    failures = 0
+    for song in args.songs:
+        try:
+            print(run_song(addon, song, args, generator), flush=True)
+        except Exception as e:
+            failures += 1
+            if not isinstance(e, DanceNetError):
+                traceback.print_exc()
+            print(f"FAILED  {song.name}: {e}", flush=True)
+    print(f"{len(args.songs) - failures} of {len(args.songs)} songs done", flush=True)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,224 @@
+"""Motion -> keyframes: retarget onto any armature by rest-pose difference, then write actions in bulk.
+
+The retarget works in world space. For each mapped bone it asks for the world rotation
+    Q · G_j · Qᵀ · D_j · R_rest
+where G_j is joint j's world rotation from the core's FK (relative to our T-pose, turned to Blender's
+Z-up), Q turns our character frame onto the rig's (so a Y-up Mixamo import or a rig facing elsewhere
+dances facing its own front), and D_j is the smallest rotation taking the rig's rest bone direction onto
+ours (an A-pose arm is first lifted into our T-pose). The pose-bone value is that rotation relative to
+where the bone would be with an identity pose, which for our own rig reduces to
+Rb⁻¹ · (C L_j Cᵀ) · Rb. Positions then follow our FK exactly on our rig and direction-wise elsewhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import bpy
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from dancenet_core.kinematics import fk_numpy
+
+from . import rigdef
+
+if TYPE_CHECKING:
+    from dancenet_core.motion import Motion
+    from dancenet_core.skeleton import Skeleton
+
+
+@dataclass
+class PoseTracks:
+    """Pose-bone values per frame: quaternions (w, x, y, z) per bone and the root bone's location."""
+
+    rotations: dict[str, np.ndarray]  # bone -> [T, 4]
+    root_bone: str
+    root_locations: np.ndarray  # [T, 3]
+
+    @property
+    def num_frames(self) -> int:
+        return len(self.root_locations)
+
+
+def _continuous_quaternions(matrices: np.ndarray) -> np.ndarray:
+    """Rotation matrices [T, 3, 3] -> quaternions [T, 4] (w, x, y, z) without sign flips between frames."""
+    q = Rotation.from_matrix(matrices).as_quat()[:, [3, 0, 1, 2]]
+    if len(q) > 1:
+        flips = np.cumprod(np.where(np.einsum("ti,ti->t", q[1:], q[:-1]) < 0, -1.0, 1.0))
+        q[1:] *= flips[:, None]
+    return q
+
+
+def _leg_length(heads: dict[int, np.ndarray], skeleton: Skeleton) -> float:
+    """Mean hip-knee-ankle length of the two legs: how far a rig's hips travel for our metre."""
+    total = 0.0
+    for side in ("left", "right"):
+        hip, knee, ankle = (skeleton.index(f"{side}_{n}") for n in ("hip", "knee", "ankle"))
+        total += np.linalg.norm(heads[knee] - heads[hip]) + np.linalg.norm(heads[ankle] - heads[knee])
+    return float(total / 2)
+
+
+def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str]) -> PoseTracks:
+    """Pose tracks that make `rig` perform `motion`; `bone_map` maps joint names to existing bone names.
+
+    The map must contain the pelvis and the joints in `rigdef.REQUIRED_JOINTS` (see `bonemap.resolve`).
+    Unmapped bones keep an identity pose and ride along with their parents.
+    """
+    skeleton = motion.skeleton
+    mapped = {skeleton.index(joint): bone for joint, bone in bone_map.items()}
+    joint_of = {bone: j for j, bone in mapped.items()}
+    bones = rig.data.bones
+    world = np.array(rig.matrix_world)
+    rest = {b.name: world @ np.array(b.matrix_local) for b in bones}
+    c = rigdef.Y_UP_TO_Z_UP
+
+    ours = rigdef.rest_heads(skeleton) @ c.T
+    ours_axis = rigdef.tail_offsets(skeleton) @ c.T
+    theirs = {j: rest[b][:3, 3] for j, b in mapped.items()}
+    frame_keys = [skeleton.index(n) for n in ("left_hip", "right_hip", "pelvis", "neck")]
+    q = (
+        rigdef.character_frame(*(theirs[k] for k in frame_keys))
+        @ rigdef.character_frame(*(ours[k] for k in frame_keys)).T
+    )
+    scale = _leg_length(theirs, skeleton) / _leg_length(dict(enumerate(ours)), skeleton)
+
+    delta: dict[int, np.ndarray] = {}
+    for j, bone in mapped.items():
+        child = rigdef.direction_child(skeleton, j)
+        if child in mapped and np.linalg.norm(theirs[child] - theirs[j]) > 1e-6:
+            v_theirs, v_ours = theirs[child] - theirs[j], ours[child] - ours[j]
+        else:
+            v_theirs, v_ours = rest[bone][:3, 1], ours_axis[j]
+        delta[j] = rigdef.min_rotation(v_theirs, q @ v_ours)
+
+    _, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
+    qc = q @ c
+    g = qc @ w @ qc.T  # world turns, in Blender axes, on the rig's own frame
+    root_target = theirs[0] + scale * (motion.root_positions @ c.T - ours[0]) @ q.T
+
+    needed: set[str] = set()
+    for bone in mapped.values():
+        b = bones[bone]
+        while b is not None and b.name not in needed:
+            needed.add(b.name)
+            b = b.parent
+    posed: dict[str, np.ndarray] = {}  # bone -> world matrices [T or 1, 4, 4]
+    rotations: dict[str, np.ndarray] = {}
+    root_locations = np.zeros((motion.num_frames, 3))
+    for name in sorted(needed, key=lambda n: len(bones[n].parent_recursive)):
+        parent = bones[name].parent
+        if parent is None:
+            identity_pose = rest[name][None]
+        else:
+            identity_pose = posed[parent.name] @ (np.linalg.inv(rest[parent.name]) @ rest[name])
+        j = joint_of.get(name)
+        if j is None:
+            posed[name] = identity_pose
+            continue
+        # The bone's world scale (the object's, e.g. 0.01 for a Mixamo import) is the same in every pose.
+        scale_xyz = np.linalg.norm(rest[name][:3, :3], axis=0)
+        target = g[:, j] @ (delta[j] @ (rest[name][:3, :3] / scale_xyz))
+        basis = np.swapaxes(identity_pose[:, :3, :3] / scale_xyz, -1, -2) @ target
+        rotations[name] = _continuous_quaternions(basis)
+        m = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()
+        m[:, :3, :3] = target * scale_xyz
+        if j == 0:
+            offset = root_target - identity_pose[:, :3, 3]
+            root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
+            m[:, :3, 3] = root_target
+        posed[name] = m
+    return PoseTracks(rotations, mapped[0], root_locations)
+
+
+_LINEAR = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
+
+
+def _fill(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) -> None:
+    """One key per frame in three bulk calls.
+
+    Linear interpolation: with a key on every frame it only matters between frames (motion blur,
+    retimed playback), and it needs no Bezier handles, which would cost a recalculation per curve
+    (Blender recomputes them itself if the user switches a curve to Bezier).
+    """
+    n = len(frames)
+    co = np.empty(2 * n, dtype=np.float32)
+    co[0::2] = frames
+    co[1::2] = values
+    points = fcurve.keyframe_points
+    points.add(n)
+    points.foreach_set("co", co)
+    points.foreach_set("interpolation", np.full(n, _LINEAR, dtype=np.int32))
+
+
+def _fcurve_maker(
+    action: bpy.types.Action, rig: bpy.types.Object
+) -> tuple[bpy.types.ActionSlot | None, Callable[[str, int, str], bpy.types.FCurve]]:
+    """(slot or None, new(data_path, index, group) -> FCurve) for layered (4.4+) or legacy actions."""
+    if hasattr(action, "slots"):
+        slot = action.slots.new(id_type="OBJECT", name=rig.name)
+        bag = action.layers.new("Layer").strips.new(type="KEYFRAME").channelbag(slot, ensure=True)
+        groups: dict[str, bpy.types.ActionGroup] = {}
+
+        def new_layered(path: str, index: int, group: str) -> bpy.types.FCurve:
+            fcurve = bag.fcurves.new(path, index=index)
+            if group not in groups:
+                groups[group] = bag.groups.new(group)
+            fcurve.group = groups[group]
+            return fcurve
+
+        return slot, new_layered
+
+    def new_legacy(path: str, index: int, group: str) -> bpy.types.FCurve:
+        return action.fcurves.new(path, index=index, action_group=group)
+
+    return None, new_legacy
+
+
+def write_action(rig: bpy.types.Object, tracks: PoseTracks, name: str, frame_start: int) -> bpy.types.Action:
+    """A new action (never reusing one) with one key per frame from `frame_start`, assigned to `rig`.
+
+    The action keeps a fake user, so earlier takes survive saving even when no object uses them.
+    """
+    action = bpy.data.actions.new(name)
+    action.use_fake_user = True
+    slot, new_fcurve = _fcurve_maker(action, rig)
+    frames = frame_start + np.arange(tracks.num_frames, dtype=np.float64)
+    for bone, quats in tracks.rotations.items():
+        rig.pose.bones[bone].rotation_mode = "QUATERNION"
+        path = f'pose.bones["{bpy.utils.escape_identifier(bone)}"].rotation_quaternion'
+        for i in range(4):
+            _fill(new_fcurve(path, i, bone), frames, quats[:, i])
+    path = f'pose.bones["{bpy.utils.escape_identifier(tracks.root_bone)}"].location'
+    for i in range(3):
+        _fill(new_fcurve(path, i, tracks.root_bone), frames, tracks.root_locations[:, i])
+    anim = rig.animation_data or rig.animation_data_create()
+    anim.action = action
+    if slot is not None:
+        anim.action_slot = slot
+    return action
+
+
+def mute_overriding_constraints(rig: bpy.types.Object, bones: list[str]) -> list[str]:
+    """Mute constraints on the driven bones (Rigify DEF bones copy ORG bones); returns the bones touched."""
+    touched = []
+    for name in bones:
+        active = [con for con in rig.pose.bones[name].constraints if not con.mute and con.influence > 0]
+        for con in active:
+            con.mute = True
+        if active:
+            touched.append(name)
+    return touched
+
+
+def apply_motion(
+    rig: bpy.types.Object,
+    motion: Motion,
+    bone_map: dict[str, str],
+    action_name: str,
+    frame_start: int,
+    fps: float,
+) -> bpy.types.Action:
+    """Resample `motion` to `fps`, retarget it through `bone_map` and write it as a new action on `rig`."""
+    return write_action(rig, retarget(rig, motion.resampled(fps), bone_map), action_name, frame_start)

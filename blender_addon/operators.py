@@ -1,0 +1,289 @@
+"""Operators: Generate Dance (non-blocking), cancel, exports, bone-map editing, rig, dependencies."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import bpy
+from bpy.props import StringProperty
+from bpy_extras.io_utils import ExportHelper
+
+from dancenet_core.errors import DanceNetError
+
+from . import bonemap, deps, export, pipeline, rig
+
+_REDRAW_AREAS = frozenset({"VIEW_3D", "SEQUENCE_EDITOR", "PREFERENCES"})
+
+
+def _redraw(context: bpy.types.Context) -> None:
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type in _REDRAW_AREAS:
+                area.tag_redraw()
+
+
+class DANCENET_OT_generate(bpy.types.Operator):
+    """Generate a dance to the chosen song (runs in the background; Esc cancels and changes nothing)"""
+
+    bl_idname = "dancenet.generate"
+    bl_label = "Generate Dance"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return not context.window_manager.dancenet.running
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        """The blocking path: scripts, batch mode, and any call without a window to stay responsive in."""
+        try:
+            plan = pipeline.prepare(context.scene)
+            applied = pipeline.generate_now(context, plan, pipeline.load_generator())
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, applied.summary())
+        return {"FINISHED"}
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            plan = pipeline.prepare(context.scene)
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self._begin(context, plan)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _begin(self, context: bpy.types.Context, plan: pipeline.Plan) -> None:
+        """Start the worker and the timer that polls it."""
+        self._plan = plan
+        # The core (and torch) is imported on the worker thread too, so the first run does not freeze the UI.
+        self._job = pipeline.GenerationJob(pipeline.load_generator, plan.request)
+        self._job.start()
+        runtime = context.window_manager.dancenet
+        runtime.running, runtime.cancel_requested = True, False
+        self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
+        self._show(context, "Starting", 0.0)
+
+    def _show(self, context: bpy.types.Context, stage: str, fraction: float) -> None:
+        runtime = context.window_manager.dancenet
+        runtime.stage, runtime.progress = stage, fraction
+        context.workspace.status_text_set(f"DanceNet: {stage} {fraction:.0%}   (Esc to cancel)")
+        _redraw(context)
+
+    def _end(self, context: bpy.types.Context) -> None:
+        context.window_manager.event_timer_remove(self._timer)
+        context.window_manager.dancenet.running = False
+        if context.workspace is not None:  # None while Blender loads another file and cancels us
+            context.workspace.status_text_set(None)
+        _redraw(context)
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if event.type == "ESC" or context.window_manager.dancenet.cancel_requested:
+            self.cancel(context)
+            self.report({"WARNING"}, "DanceNet: cancelled; nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if not self._job.done:
+            self._show(context, *self._job.progress())
+            return {"PASS_THROUGH"}
+        self._end(context)
+        if self._job.error is not None:
+            self.report({"ERROR"}, pipeline.error_message(self._job.error))
+            return {"CANCELLED"}
+        try:
+            applied = pipeline.apply_result(context, self._plan, self._job.result)
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, applied.summary())
+        return {"FINISHED"}
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        """Esc, the Cancel button, or Blender ending the operator (file load): drop the job, touch nothing."""
+        self._job.cancel()
+        self._end(context)
+
+
+class DANCENET_OT_cancel(bpy.types.Operator):
+    """Stop the running generation; the scene stays as it was"""
+
+    bl_idname = "dancenet.cancel"
+    bl_label = "Cancel"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.window_manager.dancenet.running
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        context.window_manager.dancenet.cancel_requested = True
+        return {"FINISHED"}
+
+
+def export_target(context: bpy.types.Context) -> bpy.types.Object | None:
+    """The active armature, else the panel's target armature."""
+    obj = context.active_object
+    if obj is not None and obj.type == "ARMATURE":
+        return obj
+    return context.scene.dancenet.armature
+
+
+class _ExportDance(ExportHelper):
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        rig_obj = export_target(context)
+        return (
+            rig_obj is not None
+            and rig_obj.animation_data is not None
+            and rig_obj.animation_data.action is not None
+        )
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        action = export_target(context).animation_data.action
+        self.filepath = bpy.path.clean_name(action.name) + self.filename_ext
+        return super().invoke(context, event)
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            path = self.write(context, export_target(context), Path(self.filepath))
+        except (DanceNetError, RuntimeError) as e:
+            self.report({"ERROR"}, str(e).strip().splitlines()[-1])
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Exported {path}")
+        return {"FINISHED"}
+
+
+class DANCENET_OT_export_bvh(_ExportDance, bpy.types.Operator):
+    """Export the dance as BVH (Y up, metres)"""
+
+    bl_idname = "dancenet.export_bvh"
+    bl_label = "Export BVH"
+    filename_ext = ".bvh"
+    filter_glob: StringProperty(default="*.bvh", options={"HIDDEN"})
+
+    def write(self, context: bpy.types.Context, rig_obj: bpy.types.Object, path: Path) -> Path:
+        return export.export_bvh(context, rig_obj, path)
+
+
+class DANCENET_OT_export_fbx(_ExportDance, bpy.types.Operator):
+    """Export the dancer (rig, mesh, baked dance) as FBX for Unity, Unreal or another Blender"""
+
+    bl_idname = "dancenet.export_fbx"
+    bl_label = "Export FBX"
+    filename_ext = ".fbx"
+    filter_glob: StringProperty(default="*.fbx", options={"HIDDEN"})
+
+    def write(self, context: bpy.types.Context, rig_obj: bpy.types.Object, path: Path) -> Path:
+        return export.export_fbx(context, rig_obj, path)
+
+
+class DANCENET_OT_edit_bone_map(bpy.types.Operator):
+    """Copy the chosen bone map into a text block to edit, and use that text block"""
+
+    bl_idname = "dancenet.edit_bone_map"
+    bl_label = "Edit Bone Map"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        props = context.scene.dancenet
+        try:
+            if props.bone_map == "TEXT" and props.bone_map_text is not None:
+                return {"FINISHED"}
+            if props.bone_map in bonemap.SHIPPED:
+                chosen = bonemap.load_shipped(props.bone_map)
+            elif props.bone_map == "FILE":
+                chosen = bonemap.load_file(bpy.path.abspath(props.bone_map_file))
+            elif props.armature is not None:
+                chosen = bonemap.detect([b.name for b in props.armature.data.bones], props.armature.name)
+            else:
+                chosen = bonemap.load_shipped("SMPLX")
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        text = bpy.data.texts.new(f"{chosen.name} bone map.json")
+        text.write(json.dumps({"name": f"{chosen.name} (edited)", "bones": chosen.bones}, indent=2) + "\n")
+        props.bone_map_text, props.bone_map = text, "TEXT"
+        self.report({"INFO"}, f"Bone map copied to text '{text.name}': edit it in the Text Editor")
+        return {"FINISHED"}
+
+
+class DANCENET_OT_add_rig(bpy.types.Operator):
+    """Add a DanceNet rig (55 bones, SMPL-X names) with a mannequin mesh"""
+
+    bl_idname = "dancenet.add_rig"
+    bl_label = "Add DanceNet Rig"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        rig_obj = rig.create_rig(context, pipeline.RIG_NAME, with_mesh=context.scene.dancenet.with_mesh)
+        rig_obj.location = context.scene.cursor.location
+        context.view_layer.objects.active = rig_obj
+        return {"FINISHED"}
+
+
+class DANCENET_OT_install_dependencies(bpy.types.Operator):
+    """Download and install torch, scipy, madmom and the rest (pinned versions, ~300 MB) with pip"""
+
+    bl_idname = "dancenet.install_dependencies"
+    bl_label = "Install Dependencies"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return not context.window_manager.dancenet.installing
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        target = deps.site_dir(create=True)
+        self._log_path = target.parent / "pip-install.log"
+        self._log: Any = self._log_path.open("w", encoding="utf-8")
+        try:
+            self._process = subprocess.Popen(
+                deps.pip_command(target), stdout=self._log, stderr=subprocess.STDOUT
+            )
+        except OSError as e:
+            self._log.close()
+            self.report({"ERROR"}, f"Cannot run pip: {e}")
+            return {"CANCELLED"}
+        self._target = target
+        context.window_manager.dancenet.installing = True
+        self._timer = context.window_manager.event_timer_add(0.5, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        context.workspace.status_text_set("DanceNet: installing dependencies with pip…")
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if event.type != "TIMER" or self._process.poll() is None:
+            return {"PASS_THROUGH"}
+        context.window_manager.event_timer_remove(self._timer)
+        context.window_manager.dancenet.installing = False
+        context.workspace.status_text_set(None)
+        self._log.close()
+        _redraw(context)
+        if self._process.returncode != 0:
+            lines = self._log_path.read_text(encoding="utf-8", errors="replace").strip().splitlines()
+            last = lines[-1] if lines else "no output"
+            self.report({"ERROR"}, f"pip failed ({last}); full log: {self._log_path}")
+            return {"CANCELLED"}
+        deps.finish_install(self._target)
+        still = deps.missing()
+        if still:
+            self.report({"ERROR"}, f"Installed, but still missing: {', '.join(still)}; log: {self._log_path}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, "DanceNet dependencies installed")
+        return {"FINISHED"}
+
+
+CLASSES = (
+    DANCENET_OT_generate,
+    DANCENET_OT_cancel,
+    DANCENET_OT_export_bvh,
+    DANCENET_OT_export_fbx,
+    DANCENET_OT_edit_bone_map,
+    DANCENET_OT_add_rig,
+    DANCENET_OT_install_dependencies,
+)

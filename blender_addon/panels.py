@@ -1,0 +1,97 @@
+"""The DanceNet sidebar tab, in the 3D Viewport and in the Sequencer (same content)."""
+
+from __future__ import annotations
+
+import bpy
+
+from . import deps, operators
+
+
+def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
+    """The last analysis of this song: tempo and the style classifier's probabilities."""
+    box = layout.box().column(align=True)
+    box.label(text=f"Tempo {analysis['tempo_bpm']:.0f} BPM", icon="SOUND")
+    for style, p in sorted(analysis["probabilities"].items(), key=lambda kv: -kv[1]):
+        box.progress(factor=p, text=f"{style.replace('_', ' ').title()} {p:.0%}")
+
+
+class _DanceNetPanel:
+    bl_region_type = "UI"
+    bl_category = "DanceNet"
+    bl_label = "DanceNet"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        props = context.scene.dancenet
+        runtime = context.window_manager.dancenet
+        missing = deps.missing()
+        if missing:
+            box = layout.box()
+            box.label(text=f"Missing: {', '.join(missing)}", icon="ERROR")
+            box.operator("dancenet.install_dependencies", icon="IMPORT")
+            if runtime.installing:
+                box.label(text="Installing… (Blender stays usable)", icon="SORTTIME")
+
+        col = layout.column()
+        col.row().prop(props, "music_source", expand=True)
+        if props.music_source == "FILE":
+            col.prop(props, "music_file", text="")
+        else:
+            strip = context.scene.sequence_editor.active_strip if context.scene.sequence_editor else None
+            if strip is not None and strip.type == "SOUND":
+                col.label(text=strip.name, icon="SOUND")
+            else:
+                col.label(text="Select a sound strip in the Sequencer", icon="INFO")
+
+        col = layout.column()
+        col.prop(props, "style")
+        analysis = props.analysis_for(props.current_song(context.scene))
+        if analysis:
+            _draw_analysis(col, analysis)
+        col.prop(props, "seed")
+        col.prop(props, "temperature")
+        col.prop(props, "takes")
+        col.prop(props, "footfix")
+        col.prop(props, "add_markers")
+
+        col = layout.column()
+        col.row().prop(props, "target", expand=True)
+        if props.target == "NEW":
+            col.prop(props, "with_mesh")
+        else:
+            col.prop(props, "armature", text="")
+            col.prop(props, "bone_map")
+            if props.bone_map == "FILE":
+                col.prop(props, "bone_map_file", text="")
+            elif props.bone_map == "TEXT":
+                col.prop(props, "bone_map_text", text="")
+            col.operator("dancenet.edit_bone_map", icon="TEXT")
+
+        if runtime.running:
+            row = layout.row(align=True)
+            row.progress(factor=runtime.progress, text=f"{runtime.stage} {runtime.progress:.0%}")
+            row.operator("dancenet.cancel", text="", icon="CANCEL")
+        else:
+            row = layout.row()
+            row.scale_y = 1.5
+            row.enabled = not missing
+            row.operator("dancenet.generate", icon="PLAY_SOUND")
+
+        rig_obj = operators.export_target(context)
+        if rig_obj is not None and rig_obj.animation_data and rig_obj.animation_data.action:
+            row = layout.row(align=True)
+            row.operator("dancenet.export_fbx", icon="EXPORT")
+            row.operator("dancenet.export_bvh", icon="EXPORT")
+
+
+class DANCENET_PT_view3d(_DanceNetPanel, bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_idname = "DANCENET_PT_view3d"
+
+
+class DANCENET_PT_sequencer(_DanceNetPanel, bpy.types.Panel):
+    bl_space_type = "SEQUENCE_EDITOR"
+    bl_idname = "DANCENET_PT_sequencer"
+
+
+CLASSES = (DANCENET_PT_view3d, DANCENET_PT_sequencer)

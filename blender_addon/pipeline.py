@@ -1,0 +1,352 @@
+"""From the user's settings to a dancing rig: validate, generate (on a worker thread or inline), apply.
+
+Nothing in the scene changes before a result is applied, and only `apply_result` (main thread) touches
+bpy data, so a cancelled or failed generation leaves the file exactly as it was.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import bpy
+
+from dancenet_core.errors import DanceNetError
+
+from . import bonemap, deps, rig
+
+Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
+
+# Markers this add-on owns (replaced on each generation); anything else on the timeline is left alone.
+_MARKER_NAME = re.compile(r"^(bar \d+|·)$")
+BEAT_MARKER = "·"
+RIG_NAME = "DanceNet Dancer"
+_AUDIO_SUFFIXES = frozenset(".wav .mp3 .ogg .oga .flac .m4a .aac .aif .aiff .opus .wma .mp4 .webm".split())
+
+
+def load_generator() -> Generator:
+    """The core's generate_dance (imported late: it pulls in torch)."""
+    from dancenet_core.generate import generate_dance
+
+    return generate_dance
+
+
+_styles_cache: list[str] = []
+
+
+def available_styles() -> list[str]:
+    """The shipped model's styles, or [] while the model or the dependencies are missing."""
+    if not _styles_cache and not deps.missing():
+        try:
+            from dancenet_core.generate import available_styles as core_styles
+
+            _styles_cache.extend(core_styles())
+        except (ImportError, DanceNetError, OSError):
+            return []
+    return list(_styles_cache)
+
+
+@dataclass
+class GenerationRequest:
+    """The arguments to generate_dance (no bpy objects: it crosses to the worker thread)."""
+
+    song: Path
+    style: str = "auto"
+    seed: int = 0
+    temperature: float = 0.3  # the core's DEFAULT_TEMPERATURE
+    takes: int = 1
+    footfix: bool = True
+
+    def kwargs(self) -> dict[str, Any]:
+        return {
+            "song": self.song, "style": self.style, "seed": self.seed, "temperature": self.temperature,
+            "takes": self.takes, "footfix": self.footfix,
+        }  # fmt: skip
+
+
+@dataclass
+class Placement:
+    """Where the result goes. Names, not bpy references: those can die while the generator runs."""
+
+    armature: str | None = None  # None: build a new rig
+    bone_map: bonemap.BoneMap | None = None  # None with an armature: detect
+    strip: str | None = None  # the sound strip playing the song; None: add the song as a new strip
+    add_markers: bool = True
+    with_mesh: bool = True
+
+
+@dataclass
+class Plan:
+    request: GenerationRequest
+    placement: Placement = field(default_factory=Placement)
+
+
+@dataclass
+class Applied:
+    """What apply_result made, for the report line and for callers (batch, tests)."""
+
+    rig: str
+    actions: list[str]
+    frame_start: int
+    frame_end: int
+    style: str
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        takes = f"{len(self.actions)} takes" if len(self.actions) > 1 else f"action '{self.actions[0]}'"
+        text = f"Dance on '{self.rig}' ({self.style}), frames {self.frame_start}-{self.frame_end}, {takes}"
+        return "; ".join([text, *self.notes])
+
+
+def strips_of(scene: bpy.types.Scene) -> bpy.types.bpy_prop_collection:
+    """Top-level sequencer strips: `strips` since 4.4 (and only that in 5.0), `sequences` before."""
+    editor = scene.sequence_editor
+    return getattr(editor, "strips", None) or editor.sequences
+
+
+def check_song(path: str | Path) -> Path:
+    """An existing, readable audio file, or a DanceNetError saying what is wrong with it."""
+    if not str(path).strip():
+        raise DanceNetError("No audio file chosen: pick a song file in the DanceNet panel")
+    p = Path(bpy.path.abspath(str(path))).expanduser()
+    if not p.is_file():
+        raise DanceNetError(f"Audio file not found: {p}")
+    if p.suffix.lower() not in _AUDIO_SUFFIXES:
+        raise DanceNetError(
+            f"{p.name} is not an audio file this add-on reads ({', '.join(sorted(_AUDIO_SUFFIXES))})"
+        )
+    try:
+        with p.open("rb") as f:
+            f.read(1)
+    except OSError as e:
+        raise DanceNetError(f"Cannot read {p}: {e.strerror or e}") from e
+    return p
+
+
+def song_of_strip(strip: bpy.types.Strip) -> Path:
+    if strip.type != "SOUND" or strip.sound is None:
+        raise DanceNetError(f"The active strip '{strip.name}' is not a sound strip: select the song's strip")
+    sound = strip.sound
+    if (
+        sound.packed_file is not None
+        and not Path(bpy.path.abspath(sound.filepath, library=sound.library)).is_file()
+    ):
+        raise DanceNetError(
+            f"The sound of strip '{strip.name}' is packed in the .blend: unpack it (File > External Data) "
+            "or choose the song as a file"
+        )
+    return check_song(bpy.path.abspath(sound.filepath, library=sound.library))
+
+
+def resolve_map(
+    rig_obj: bpy.types.Object, bone_map: bonemap.BoneMap | None
+) -> tuple[dict[str, str], list[str]]:
+    """(joint -> bone, skipped optional joints) for an armature; DanceNetError if the map does not fit."""
+    names = [b.name for b in rig_obj.data.bones]
+    chosen = bone_map or bonemap.detect(names, rig_obj.name)
+    return bonemap.resolve(chosen, names, rig_obj.name)
+
+
+def prepare(scene: bpy.types.Scene) -> Plan:
+    """Validate the scene's DanceNet settings into a Plan; raises DanceNetError for the user to read."""
+    props = scene.dancenet
+    missing = deps.missing()
+    if missing:
+        raise DanceNetError(
+            f"Missing Python packages: {', '.join(missing)}. "
+            "Install them from the DanceNet add-on preferences"
+        )
+    if props.music_source == "STRIP":
+        strip = scene.sequence_editor.active_strip if scene.sequence_editor else None
+        if strip is None:
+            raise DanceNetError(
+                "No active sound strip: select the song's strip in the Sequencer, or choose a file"
+            )
+        song, strip_name = song_of_strip(strip), strip.name
+    else:
+        song, strip_name = check_song(props.music_file), None
+    placement = Placement(strip=strip_name, add_markers=props.add_markers, with_mesh=props.with_mesh)
+    if props.target == "EXISTING":
+        target = props.armature
+        if target is None or target.type != "ARMATURE":
+            raise DanceNetError("No target armature: pick one in the DanceNet panel, or choose New Rig")
+        placement.armature = target.name
+        placement.bone_map = _chosen_map(props)
+        resolve_map(target, placement.bone_map)  # fail now, not after minutes of generation
+    # A style the installed model no longer has reads back as "": fall back to Auto.
+    style = props.style or "auto"
+    request = GenerationRequest(song, style, props.seed, props.temperature, props.takes, props.footfix)
+    return Plan(request, placement)
+
+
+def _chosen_map(props: Any) -> bonemap.BoneMap | None:
+    if props.bone_map == "AUTO":
+        return None
+    if props.bone_map == "FILE":
+        return bonemap.load_file(bpy.path.abspath(props.bone_map_file))
+    if props.bone_map == "TEXT":
+        if props.bone_map_text is None:
+            raise DanceNetError("Bone map 'Text' chosen but no text block picked")
+        return bonemap.parse(props.bone_map_text.as_string(), f"text '{props.bone_map_text.name}'")
+    return bonemap.load_shipped(props.bone_map)
+
+
+def error_message(error: BaseException) -> str:
+    """One line for the user; unexpected errors also go to the console with their traceback."""
+    if isinstance(error, DanceNetError):
+        return str(error)
+    traceback.print_exception(error)
+    return f"Generation failed: {type(error).__name__}: {error} (details in the system console)"
+
+
+class GenerationJob:
+    """The generator on a worker thread. The thread never touches bpy; the main thread polls it."""
+
+    def __init__(self, generator: Callable[[], Generator], request: GenerationRequest) -> None:
+        self._generator = generator
+        self._request = request
+        self._lock = threading.Lock()
+        self._cancel = threading.Event()
+        self._stage, self._fraction = "Starting", 0.0
+        self.result: Any = None
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="dancenet-generate", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _progress(self, stage: str, fraction: float) -> None:
+        with self._lock:
+            self._stage, self._fraction = stage, min(max(float(fraction), 0.0), 1.0)
+
+    def _run(self) -> None:
+        try:
+            self.result = self._generator()(
+                **self._request.kwargs(), progress=self._progress, should_cancel=self._cancel.is_set
+            )
+        except Exception as e:  # reported on the main thread; a cancelled job's error is dropped
+            self.error = e
+
+    def progress(self) -> tuple[str, float]:
+        with self._lock:
+            return self._stage, self._fraction
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def join(self, timeout: float | None = None) -> None:
+        self._thread.join(timeout)
+
+
+def generate_now(context: bpy.types.Context, plan: Plan, generator: Generator) -> Applied:
+    """Generate and apply on the calling thread: scripts, background mode, tests."""
+    try:
+        result = generator(**plan.request.kwargs())
+    except DanceNetError:
+        raise
+    except Exception as e:
+        raise DanceNetError(error_message(e)) from e
+    return apply_result(context, plan, result)
+
+
+def _action_name(song: Path, style: str, seed: int, take: int, takes: int) -> str:
+    stem = song.stem if len(song.stem) <= 32 else song.stem[:31] + "…"
+    name = f"{stem} · {style} · seed {seed}"
+    return f"{name} · take {take}" if takes > 1 else name
+
+
+def _song_strip(scene: bpy.types.Scene, song: Path, frame: int) -> bpy.types.Strip:
+    """The sound strip already playing `song` (a second take must not add a second copy), else a new one."""
+    scene.sequence_editor_create()
+    strips = strips_of(scene)
+    for s in strips:
+        if s.type == "SOUND" and s.sound is not None:
+            path = Path(bpy.path.abspath(s.sound.filepath, library=s.sound.library))
+            if path.is_file() and path.resolve() == song.resolve():
+                return s
+    channel = min(1 + max((s.channel for s in strips), default=0), 128)
+    try:
+        return strips.new_sound(song.stem, str(song), channel, frame)
+    except RuntimeError as e:
+        raise DanceNetError(f"Blender cannot play {song.name}: {e}") from e
+
+
+def _set_markers(scene: bpy.types.Scene, result: Any, frame_start: int, fps: float) -> None:
+    for marker in [m for m in scene.timeline_markers if _MARKER_NAME.match(m.name)]:
+        scene.timeline_markers.remove(marker)
+    downbeats = {round(float(t) * fps) for t in result.downbeat_times}
+    for i, t in enumerate(sorted(downbeats), start=1):
+        scene.timeline_markers.new(f"bar {i}", frame=frame_start + t)
+    for t in sorted({round(float(t) * fps) for t in result.beat_times} - downbeats):
+        scene.timeline_markers.new(BEAT_MARKER, frame=frame_start + t)
+
+
+def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
+    """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take."""
+    from . import keyframes  # needs scipy and torch (the core's FK): importable only once dependencies are in
+
+    scene = context.scene
+    place, req = plan.placement, plan.request
+    target = None
+    if place.armature is not None:
+        target = bpy.data.objects.get(place.armature)
+        if target is None or target.type != "ARMATURE":
+            raise DanceNetError(f"The armature '{place.armature}' is gone; nothing was changed")
+        bone_map, skipped = resolve_map(target, place.bone_map)
+    strip = None
+    if place.strip is not None:
+        strip = strips_of(scene).get(place.strip) if scene.sequence_editor else None
+        if strip is None:
+            raise DanceNetError(f"The sound strip '{place.strip}' is gone; nothing was changed")
+
+    fps = scene.render.fps / scene.render.fps_base
+    if strip is None:
+        strip = _song_strip(scene, req.song, scene.frame_start)
+    frame_start = round(strip.frame_start)
+    notes: list[str] = []
+    if target is None:
+        target = rig.create_rig(context, RIG_NAME, result.motions[0].skeleton, place.with_mesh)
+        bone_map, skipped = {n: n for n in result.motions[0].skeleton.names}, []
+        props = getattr(scene, "dancenet", None)
+        if props is not None:  # the next Generate adds takes to this rig instead of building another
+            props.target, props.armature, props.bone_map = "EXISTING", target, "AUTO"
+            notes.append("the next Generate adds a take to this rig")
+    else:
+        muted = keyframes.mute_overriding_constraints(target, list(bone_map.values()))
+        if muted:
+            notes.append(f"muted constraints on {len(muted)} bones so the keys show")
+    if skipped:
+        notes.append(f"not in this rig: {', '.join(skipped)}")
+
+    actions = []
+    frames = 0
+    for k, motion in enumerate(result.motions, start=1):
+        name = _action_name(req.song, result.style, req.seed, k, len(result.motions))
+        action = keyframes.apply_motion(target, motion, bone_map, name, frame_start, fps)
+        actions.append(action)
+        frames = max(frames, round(motion.duration * fps))
+    anim = target.animation_data
+    anim.action = actions[0]
+    if hasattr(actions[0], "slots"):
+        anim.action_slot = actions[0].slots[0]
+
+    scene.frame_start, scene.frame_end = frame_start, frame_start + frames - 1
+    scene.frame_set(frame_start)
+    scene.sync_mode = "AUDIO_SYNC"  # playback keeps pace with the music
+    if place.add_markers:
+        _set_markers(scene, result, frame_start, fps)
+    props = getattr(scene, "dancenet", None)
+    if props is not None:
+        props.remember_analysis(req.song, result)
+    return Applied(
+        target.name, [a.name for a in actions], scene.frame_start, scene.frame_end, result.style, notes
+    )

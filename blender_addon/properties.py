@@ -1,0 +1,146 @@
+"""Settings: per scene (saved with the .blend) and per session on the window manager (progress)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+
+from . import pipeline
+
+# Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
+_style_items: list[tuple[str, str, str, int]] = []
+
+
+def _style_label(style: str) -> str:
+    return style.replace("_", " ").replace("-", " ").title()
+
+
+def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    analysis = self.analysis_for(self.current_song(context.scene)) if context is not None else None
+    probs: dict[str, float] = analysis["probabilities"] if analysis else {}
+    auto = "Auto"
+    if analysis:
+        auto = f"Auto ({_style_label(analysis['style'])})"
+    items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
+    for i, style in enumerate(pipeline.available_styles(), start=1):
+        label = _style_label(style)
+        if style in probs:
+            label = f"{label}  {probs[style]:.0%}"
+        items.append((style, label, f"Dance {_style_label(style)}", i))
+    _style_items[:] = items
+    return _style_items
+
+
+def _is_armature(_self: Any, obj: bpy.types.Object) -> bool:
+    return obj.type == "ARMATURE"
+
+
+class DanceNetSettings(bpy.types.PropertyGroup):
+    music_source: EnumProperty(
+        name="Music",
+        items=[
+            ("FILE", "File", "An audio file; it becomes a sound strip in the Sequencer"),
+            ("STRIP", "Sound Strip", "The active sound strip in the Sequencer"),
+        ],
+        default="FILE",
+    )
+    music_file: StringProperty(name="Song", subtype="FILE_PATH", description="The song to dance to")
+    style: EnumProperty(name="Style", items=_styles, description="Dance style (Auto: chosen from the music)")
+    seed: IntProperty(
+        name="Seed", min=0, default=0, description="Another seed, another dance to the same song"
+    )
+    temperature: FloatProperty(
+        name="Temperature", min=0.0, max=3.0, soft_max=1.0, default=0.3,  # the core's DEFAULT_TEMPERATURE
+        description="0: the most likely dance. Higher: bolder, less predictable moves",
+    )  # fmt: skip
+    takes: IntProperty(
+        name="Takes", min=1, max=8, default=1, description="Dances generated at once, one action each"
+    )
+    footfix: BoolProperty(
+        name="Foot Clean-up", default=True, description="Remove foot sliding and floor contact errors"
+    )
+    target: EnumProperty(
+        name="Target",
+        items=[
+            ("NEW", "New Rig", "Build a DanceNet rig with a mannequin"),
+            ("EXISTING", "Existing Armature", "Drive an armature you already have, through a bone map"),
+        ],
+        default="NEW",
+    )
+    armature: PointerProperty(name="Armature", type=bpy.types.Object, poll=_is_armature)
+    bone_map: EnumProperty(
+        name="Bone Map",
+        items=[
+            ("AUTO", "Auto", "Pick the shipped map that fits the armature's bone names"),
+            ("SMPLX", "SMPL-X", "Bones named like the SMPL-X joints (DanceNet's own rig)"),
+            ("MIXAMO", "Mixamo", "mixamorig:Hips, mixamorig:Spine, ..."),
+            ("RIGIFY", "Rigify", "A generated Rigify rig, through its DEF- deform bones"),
+            ("FILE", "JSON File", "Your own map in a JSON file"),
+            ("TEXT", "Text Block", "Your own map in a text block (see Edit Bone Map)"),
+        ],
+        default="AUTO",
+    )
+    bone_map_file: StringProperty(name="Map File", subtype="FILE_PATH")
+    bone_map_text: PointerProperty(name="Map Text", type=bpy.types.Text)
+    add_markers: BoolProperty(
+        name="Beat Markers", default=True, description="Mark bars and beats on the timeline"
+    )
+    with_mesh: BoolProperty(name="Mannequin", default=True, description="Give a new rig a simple body mesh")
+    analysis: StringProperty(options={"HIDDEN"})  # JSON of the last style analysis, kept with the file
+
+    def current_song(self, scene: bpy.types.Scene) -> str:
+        """The chosen song's absolute path, or "" when none is set (never raises: used while drawing)."""
+        if self.music_source == "FILE":
+            return bpy.path.abspath(self.music_file) if self.music_file else ""
+        strip = scene.sequence_editor.active_strip if scene.sequence_editor else None
+        sound = getattr(strip, "sound", None)
+        return bpy.path.abspath(sound.filepath, library=sound.library) if sound else ""
+
+    def remember_analysis(self, song: Path, result: Any) -> None:
+        self.analysis = json.dumps({
+            "song": str(song), "style": result.style, "tempo_bpm": float(result.tempo_bpm),
+            "probabilities": {k: float(v) for k, v in result.style_probabilities.items()},
+        })  # fmt: skip
+
+    def analysis_for(self, song: str) -> dict[str, Any] | None:
+        """The last analysis, if it was of `song`."""
+        if not self.analysis or not song:
+            return None
+        data = json.loads(self.analysis)
+        return data if Path(data["song"]) == Path(song) else None
+
+
+class DanceNetRuntime(bpy.types.PropertyGroup):
+    """Session state of a running generation or install, drawn by the panel."""
+
+    running: BoolProperty()
+    stage: StringProperty()
+    progress: FloatProperty(min=0.0, max=1.0, subtype="FACTOR")
+    cancel_requested: BoolProperty()
+    installing: BoolProperty()
+
+
+CLASSES = (DanceNetSettings, DanceNetRuntime)
+
+
+@bpy.app.handlers.persistent
+def _reset_runtime(_file: str) -> None:
+    """The window manager is saved with the file: a file saved mid-generation must not load as busy."""
+    for wm in bpy.data.window_managers:
+        wm.dancenet.running = wm.dancenet.installing = wm.dancenet.cancel_requested = False
+
+
+def register() -> None:
+    bpy.types.Scene.dancenet = PointerProperty(type=DanceNetSettings)
+    bpy.types.WindowManager.dancenet = PointerProperty(type=DanceNetRuntime)
+    bpy.app.handlers.load_post.append(_reset_runtime)
+
+
+def unregister() -> None:
+    bpy.app.handlers.load_post.remove(_reset_runtime)
+    del bpy.types.WindowManager.dancenet
+    del bpy.types.Scene.dancenet

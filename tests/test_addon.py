@@ -1,0 +1,617 @@
+"""The Blender add-on under pip bpy (no GUI): rig, keyframes, retargeting, operators, exports, batch.
+
+The generator is `fake_generate_dance` (tests/test_addon_doubles.py): real Motions of synthetic
+rotations, so these tests check the add-on, not the model. Blender's user folders point at a scratch
+directory; tests that need a fresh Blender run in a subprocess.
+"""
+
+from __future__ import annotations
+
+import atexit
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+_USER = Path(tempfile.mkdtemp(prefix="dancenet-addon-tests-"))
+atexit.register(shutil.rmtree, _USER, ignore_errors=True)
+BLENDER_ENV = {
+    "BLENDER_USER_RESOURCES": str(_USER / "resources"),
+    "BLENDER_USER_CONFIG": str(_USER / "config"),
+    "BLENDER_USER_SCRIPTS": str(_USER / "scripts"),
+    "BLENDER_USER_EXTENSIONS": str(_USER / "extensions"),
+}
+if "bpy" not in sys.modules:  # Blender reads these once, when bpy is first imported
+    os.environ.update(BLENDER_ENV)
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+bpy = pytest.importorskip("bpy")
+
+from test_addon_doubles import (  # noqa: E402
+    FAKE_STYLES,
+    make_fake_generator,
+    mixamo_rest,
+    rigify_rest,
+    synthetic_motion,
+    write_song,
+)
+
+from dancenet_core.errors import DanceNetError  # noqa: E402
+from dancenet_core.generate import GenerationCancelled  # noqa: E402
+from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_NAMES  # noqa: E402
+
+MM = 1e-3
+IDENTITY_MAP = {n: n for n in JOINT_NAMES}
+
+
+@pytest.fixture(scope="module")
+def addon():
+    import blender_addon
+
+    blender_addon.register()
+    yield blender_addon
+    blender_addon.unregister()
+
+
+@pytest.fixture
+def scene(addon, monkeypatch):
+    """An empty scene (24 fps: the fake dances at 30, so keys are resampled), the fake generator in place."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    monkeypatch.setattr(addon.pipeline, "load_generator", make_fake_generator)
+    monkeypatch.setattr(addon.pipeline, "available_styles", lambda: list(FAKE_STYLES))
+    return bpy.context.scene
+
+
+@pytest.fixture
+def song(tmp_path) -> Path:
+    return write_song(tmp_path / "Test Song.wav", seconds=2.0)
+
+
+def world_heads(rig, bones) -> np.ndarray:
+    return np.array([rig.matrix_world @ rig.pose.bones[b].head for b in bones])
+
+
+def fk_world(motion) -> np.ndarray:
+    """The core's FK joint positions [T, J, 3] in Blender's Z-up world."""
+    from blender_addon.rigdef import Y_UP_TO_Z_UP
+
+    return motion.positions() @ Y_UP_TO_Z_UP.T
+
+
+def fcurves_of(action):
+    slot = action.slots[0]
+    return action.layers[0].strips[0].channelbag(slot).fcurves
+
+
+def snapshot(scene) -> dict:
+    """Everything a generation may touch, to show a cancelled or refused one touched nothing."""
+    props = scene.dancenet
+    editor = scene.sequence_editor
+    return {
+        "ids": {
+            kind: sorted(i.name for i in getattr(bpy.data, kind))
+            for kind in ("objects", "actions", "armatures", "meshes", "sounds", "texts", "materials")
+        },
+        "markers": [(m.name, m.frame) for m in scene.timeline_markers],
+        "strips": None if editor is None else sorted(s.name for s in editor.strips_all),
+        "frames": (scene.frame_start, scene.frame_end, scene.frame_current),
+        "sync": scene.sync_mode,
+        "props": {p.identifier: str(getattr(props, p.identifier)) for p in props.bl_rna.properties[1:]},
+    }
+
+
+def generate(scene, song: Path, **settings) -> set[str]:
+    props = scene.dancenet
+    props.music_source, props.music_file = "FILE", str(song)
+    for key, value in settings.items():
+        setattr(props, key, value)
+    return bpy.ops.dancenet.generate()
+
+
+# --- rig -------------------------------------------------------------------------------------------
+
+
+def test_new_rig_has_the_skeleton_and_a_skinned_mannequin(scene, addon):
+    from blender_addon import rigdef
+
+    rig = addon.rig.create_rig(bpy.context)
+    assert sorted(b.name for b in rig.data.bones) == sorted(JOINT_NAMES)
+    for j, name in enumerate(JOINT_NAMES):
+        parent = rig.data.bones[name].parent
+        assert (parent.name if parent else None) == (JOINT_NAMES[DEFAULT_SKELETON.parents[j]] if j else None)
+    expected = rigdef.rest_heads(DEFAULT_SKELETON) @ rigdef.Y_UP_TO_Z_UP.T
+    assert np.abs(world_heads(rig, JOINT_NAMES) - expected).max() < 1e-6
+    assert expected[:, 2].min() > 0.0  # standing on the floor
+    assert all(pb.rotation_mode == "QUATERNION" for pb in rig.pose.bones)
+
+    def z_axis(bone: str) -> np.ndarray:
+        return np.array(rig.matrix_world.to_3x3() @ rig.data.bones[bone].matrix_local.to_3x3().col[2])
+
+    assert z_axis("left_elbow") @ (0, 0, 1) > 0.99  # arms: Z up, left and right alike
+    assert z_axis("right_elbow") @ (0, 0, 1) > 0.99
+    assert z_axis("left_knee") @ (0, -1, 0) > 0.99  # legs: Z toward the front (-Y)
+
+    (body,) = rig.children
+    assert body.type == "MESH" and body.modifiers[0].type == "ARMATURE" and body.modifiers[0].object == rig
+    assert sorted(g.name for g in body.vertex_groups) == sorted(JOINT_NAMES)
+    assert all(len(v.groups) == 1 and v.groups[0].weight == 1.0 for v in body.data.vertices)
+
+
+# --- keyframes -------------------------------------------------------------------------------------
+
+
+def test_keyframes_one_per_frame_and_joints_on_the_core_fk(scene, addon):
+    from blender_addon import keyframes
+
+    scene.render.fps = 24
+    rig = addon.rig.create_rig(bpy.context)
+    motion = synthetic_motion(2.0, seed=3)
+    action = keyframes.apply_motion(rig, motion, IDENTITY_MAP, "take", 10, 24.0)
+
+    n = 48  # 2 s at the scene's 24 fps
+    curves = fcurves_of(action)
+    rotated = {fc.data_path.split('"')[1] for fc in curves if fc.data_path.endswith("rotation_quaternion")}
+    assert rotated == set(JOINT_NAMES)
+    assert [fc.data_path for fc in curves if fc.data_path.endswith("location")] == [
+        'pose.bones["pelvis"].location'
+    ] * 3
+    assert len(curves) == 55 * 4 + 3
+    for fc in curves:
+        co = np.empty(2 * len(fc.keyframe_points))
+        fc.keyframe_points.foreach_get("co", co)
+        assert np.array_equal(co[0::2], np.arange(10, 10 + n))
+
+    expected = fk_world(motion.resampled(24.0))
+    for f in (0, 1, 17, n - 1):
+        scene.frame_set(10 + f)
+        assert np.abs(world_heads(rig, JOINT_NAMES) - expected[f]).max() < MM
+
+
+def build_armature(name: str, bones, mixamo_import: bool = True, seed: int = 0):
+    """An armature from (bone, parent, head, tail) rows, with random rolls (unlike ours).
+
+    `mixamo_import`: stored like a Mixamo FBX import, Y-up centimetres turned and scaled 0.01 by the object.
+    """
+    data = bpy.data.armatures.new(name)
+    obj = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(obj)
+    if mixamo_import:
+        obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
+        obj.scale = (0.01, 0.01, 0.01)
+    rng = np.random.default_rng(seed)
+    bpy.context.view_layer.objects.active = obj
+    with bpy.context.temp_override(active_object=obj, object=obj):
+        bpy.ops.object.mode_set(mode="EDIT")
+        for bone, _parent, head, tail in bones:
+            eb = data.edit_bones.new(bone)
+            eb.head, eb.tail = head, tail
+            eb.roll = float(rng.uniform(-math.pi, math.pi))
+        for bone, parent, _head, _tail in bones:
+            if parent is not None:
+                data.edit_bones[bone].parent = data.edit_bones[parent]
+        bpy.ops.object.mode_set(mode="OBJECT")
+    bpy.context.view_layer.update()
+    return obj
+
+
+def assert_dances_like(rig, mapping: dict[str, str], motion, first_frame: int, scale: float) -> None:
+    """Mapped bones point where our FK's joints point (< 0.5 degree) and the hips travel as our pelvis."""
+    from blender_addon import rigdef
+
+    fk = fk_world(motion)
+    pelvis = mapping["pelvis"]
+    rest_hips = np.array(rig.matrix_world @ rig.data.bones[pelvis].head_local)
+    ours_rest_pelvis = rigdef.rest_heads(DEFAULT_SKELETON)[0] @ rigdef.Y_UP_TO_Z_UP.T
+    pairs = [
+        (DEFAULT_SKELETON.index(j), c)
+        for j in mapping
+        if (c := rigdef.direction_child(DEFAULT_SKELETON, DEFAULT_SKELETON.index(j))) is not None
+        and JOINT_NAMES[c] in mapping
+    ]
+    assert len(pairs) >= 20
+    for f in (0, motion.num_frames // 3, motion.num_frames - 1):
+        bpy.context.scene.frame_set(first_frame + f)
+        for j, c in pairs:
+            head, child = world_heads(rig, [mapping[JOINT_NAMES[j]], mapping[JOINT_NAMES[c]]])
+            theirs, ours = child - head, fk[f, c] - fk[f, j]
+            cos = theirs @ ours / np.linalg.norm(theirs) / np.linalg.norm(ours)
+            assert math.degrees(math.acos(min(1.0, cos))) < 0.5, (JOINT_NAMES[j], f)
+        hips = world_heads(rig, [pelvis])[0]
+        assert np.abs(hips - (rest_hips + scale * (fk[f, 0] - ours_rest_pelvis))).max() < MM
+
+
+def test_mixamo_rig_in_a_pose_follows_the_dance(scene, addon):
+    from blender_addon import keyframes
+
+    scene.render.fps = 30
+    rig = build_armature("Mixamo Dancer", mixamo_rest(prefix="mixamorig1:", scale=0.9))
+    names = [b.name for b in rig.data.bones]
+    chosen = addon.bonemap.detect(names, rig.name)
+    assert chosen.name == "Mixamo"
+    mapping, skipped = addon.bonemap.resolve(chosen, names, rig.name)
+    assert mapping["pelvis"] == "mixamorig1:Hips" and mapping["left_elbow"] == "mixamorig1:LeftForeArm"
+    assert "left_middle1 (mixamorig:LeftHandMiddle1)" in skipped
+
+    motion = synthetic_motion(1.0, seed=5)
+    keyframes.apply_motion(rig, motion, mapping, "mixamo take", 1, 30.0)
+    assert_dances_like(rig, mapping, motion, 1, scale=0.9)
+
+
+def test_rigify_deform_bones_are_driven_over_their_constraints(scene, addon, song):
+    rigify = addon.bonemap.load_shipped("RIGIFY")
+    rig = build_armature("rig", rigify_rest(rigify.bones), mixamo_import=False)
+    for bone in rigify.bones.values():
+        rig.pose.bones[bone].constraints.new("COPY_TRANSFORMS")  # as Rigify's DEF bones follow ORG bones
+    assert generate(scene, song, target="EXISTING", armature=rig) == {"FINISHED"}  # bone map: Auto
+    assert all(con.mute for bone in rigify.bones.values() for con in rig.pose.bones[bone].constraints)
+    paths = {fc.data_path for fc in fcurves_of(rig.animation_data.action)}
+    assert not any("DEF-spine.005" in p or "root" in p for p in paths)  # unmapped bones ride along
+    motion = synthetic_motion(2.0, seed=0).resampled(scene.render.fps)  # what the fake generator danced
+    assert_dances_like(rig, rigify.bones, motion, scene.frame_start, scale=1.05)
+
+
+def test_edited_bone_map_in_a_text_block_is_used(scene, addon, song):
+    rig = build_armature("Mixamo Dancer", mixamo_rest())
+    scene.dancenet.target, scene.dancenet.armature, scene.dancenet.bone_map = "EXISTING", rig, "MIXAMO"
+    assert bpy.ops.dancenet.edit_bone_map() == {"FINISHED"}
+    text = scene.dancenet.bone_map_text
+    assert scene.dancenet.bone_map == "TEXT" and '"mixamorig:Hips"' in text.as_string()
+    text.from_string(text.as_string().replace('"left_elbow": "mixamorig:LeftForeArm",', ""))
+    with pytest.raises(RuntimeError, match=r"left_elbow \(not in the map\)"):
+        generate(scene, song)
+
+
+def test_missing_bones_are_named(scene, addon, song):
+    bones = [b for b in mixamo_rest() if not b[0].endswith(("LeftForeArm", "RightUpLeg"))]
+    bones = [(n, "mixamorig:LeftArm" if p == "mixamorig:LeftForeArm" else p, h, t) for n, p, h, t in bones]
+    bones = [(n, "mixamorig:Hips" if p == "mixamorig:RightUpLeg" else p, h, t) for n, p, h, t in bones]
+    rig = build_armature("Incomplete", bones)
+    with pytest.raises(DanceNetError) as err:
+        addon.bonemap.resolve(
+            addon.bonemap.load_shipped("MIXAMO"), [b.name for b in rig.data.bones], rig.name
+        )
+    message = str(err.value)
+    assert "left_elbow ('mixamorig:LeftForeArm' not in the armature)" in message
+    assert "right_hip ('mixamorig:RightUpLeg' not in the armature)" in message
+
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError) as report:
+        generate(scene, song, target="EXISTING", armature=rig, bone_map="MIXAMO")
+    assert "mixamorig:LeftForeArm" in str(report.value) and "Traceback" not in str(report.value)
+    before["props"].update(target="EXISTING", armature=str(rig), bone_map="MIXAMO")
+    before["props"].update(music_source="FILE", music_file=str(song))
+    assert snapshot(scene) == before
+
+
+def test_shipped_bone_maps_name_known_joints(addon):
+    for key in addon.bonemap.SHIPPED:
+        bone_map = addon.bonemap.load_shipped(key)
+        assert set(bone_map.bones) <= set(JOINT_NAMES)
+        assert set(addon.rigdef.REQUIRED_JOINTS) <= set(bone_map.bones)
+    assert all(b.startswith("DEF-") for b in addon.bonemap.load_shipped("RIGIFY").bones.values())
+
+
+# --- the Generate Dance operator --------------------------------------------------------------------
+
+
+def test_generate_builds_rig_strip_markers_and_keeps_earlier_takes(scene, addon, song):
+    assert generate(scene, song, seed=7) == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    first = rig.animation_data.action
+    assert first.name == "Test Song · hiphop · seed 7" and first.use_fake_user
+    (strip,) = scene.sequence_editor.strips_all
+    assert strip.type == "SOUND" and Path(bpy.path.abspath(strip.sound.filepath)) == song
+    assert (scene.frame_start, scene.frame_end) == (1, 48)
+    assert [(m.name, m.frame) for m in sorted(scene.timeline_markers, key=lambda m: m.frame)] == [
+        ("bar 1", 1), ("·", 13), ("·", 25), ("·", 37),
+    ]  # fmt: skip
+    props = scene.dancenet
+    assert (props.target, props.armature) == ("EXISTING", rig)
+    label = bpy.types.UILayout.enum_item_name
+    assert (
+        label(props, "style", "auto") == "Auto (Hiphop)" and label(props, "style", "hiphop") == "Hiphop  70%"
+    )
+
+    def values(action) -> np.ndarray:
+        out = []
+        for fc in fcurves_of(action):
+            co = np.empty(2 * len(fc.keyframe_points))
+            fc.keyframe_points.foreach_get("co", co)
+            out.append(co)
+        return np.concatenate(out)
+
+    kept = values(first)
+    assert generate(scene, song, seed=8, style="jazz") == {"FINISHED"}
+    second = rig.animation_data.action
+    assert second.name == "Test Song · jazz · seed 8" and second != first
+    assert np.array_equal(values(bpy.data.actions["Test Song · hiphop · seed 7"]), kept)
+    assert len(scene.sequence_editor.strips_all) == 1  # the song's strip is reused, not doubled
+    assert len([o for o in bpy.data.objects if o.type == "ARMATURE"]) == 1
+
+
+def test_takes_become_separate_actions(scene, addon, song):
+    assert generate(scene, song, takes=3) == {"FINISHED"}
+    names = sorted(a.name for a in bpy.data.actions)
+    assert names == [f"Test Song · hiphop · seed 0 · take {k}" for k in (1, 2, 3)]
+    assert bpy.data.objects["DanceNet Dancer"].animation_data.action.name.endswith("take 1")
+
+
+def test_active_sound_strip_is_the_music_source(scene, addon, song):
+    scene.sequence_editor_create()
+    strip = scene.sequence_editor.strips.new_sound("song", str(song), 2, 30)
+    scene.sequence_editor.active_strip = strip
+    scene.dancenet.music_source = "STRIP"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert (scene.frame_start, scene.frame_end) == (30, 77)
+    assert len(scene.sequence_editor.strips_all) == 1
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"music_file": ""}, "No audio file chosen"),
+        ({"music_file": "/nonexistent/song.wav"}, "Audio file not found"),
+        ({"music_file": "NOTES"}, "is not an audio file"),
+        ({"music_source": "STRIP"}, "No active sound strip"),
+        ({"target": "EXISTING"}, "No target armature"),
+        (
+            {"target": "EXISTING", "armature": "RIG", "bone_map": "TEXT", "bone_map_text": "BAD"},
+            "not valid JSON",
+        ),
+    ],
+)
+def test_bad_inputs_are_reported_not_raised(scene, addon, tmp_path, settings, message):
+    props = scene.dancenet
+    if settings.get("music_file") == "NOTES":
+        settings["music_file"] = str(tmp_path / "notes.txt")
+        Path(settings["music_file"]).write_text("not a song")
+    if settings.get("armature") == "RIG":
+        settings["armature"] = addon.rig.create_rig(bpy.context, with_mesh=False)
+    if settings.get("bone_map_text") == "BAD":
+        settings["bone_map_text"] = bpy.data.texts.new("map.json")
+        settings["bone_map_text"].write('{"bones": {"pelvis": ')
+    props.music_file = str(write_song(tmp_path / "ok.wav", 1.0))
+    for key, value in settings.items():
+        setattr(props, key, value)
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError) as report:  # bpy.ops turns an operator's ERROR report into this
+        bpy.ops.dancenet.generate()
+    assert str(report.value).startswith("Error: ") and message in str(report.value)
+    assert "Traceback" not in str(report.value)
+    assert snapshot(scene) == before
+
+
+def _modal_stand_in(addon):
+    """Generate Dance's modal methods on a plain object: bpy as a module has no event loop to run them."""
+    op = addon.operators.DANCENET_OT_generate
+
+    class StandIn:
+        _begin, _show, _end, modal, cancel = op._begin, op._show, op._end, op.modal, op.cancel
+
+        def __init__(self) -> None:
+            self.reports: list[tuple[set[str], str]] = []
+
+        def report(self, kind: set[str], message: str) -> None:
+            self.reports.append((kind, message))
+
+    return StandIn()
+
+
+def test_background_generation_cancelled_with_esc_changes_nothing(scene, addon, song, monkeypatch):
+    monkeypatch.setattr(
+        addon.pipeline, "load_generator", lambda: make_fake_generator(step_delay=0.05, steps=400)
+    )
+    scene.dancenet.music_file = str(song)
+    before = snapshot(scene)
+    op = _modal_stand_in(addon)
+    op._begin(bpy.context, addon.pipeline.prepare(scene))
+    deadline = time.monotonic() + 10
+    while op._job.progress()[1] == 0.0 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert op.modal(bpy.context, SimpleNamespace(type="TIMER")) == {"PASS_THROUGH"}
+    runtime = bpy.context.window_manager.dancenet
+    assert runtime.running and runtime.stage == "dancing" and runtime.progress > 0
+    assert op.modal(bpy.context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    op._job.join(5)
+    assert op._job.done and isinstance(op._job.error, GenerationCancelled)
+    assert not runtime.running
+    assert op.reports == [({"WARNING"}, "DanceNet: cancelled; nothing was changed")]
+    assert snapshot(scene) == before
+
+
+def test_background_generation_runs_to_the_end(scene, addon, song):
+    scene.dancenet.music_file = str(song)
+    op = _modal_stand_in(addon)
+    op._begin(bpy.context, addon.pipeline.prepare(scene))
+    op._job.join(30)
+    assert op.modal(bpy.context, SimpleNamespace(type="TIMER")) == {"FINISHED"}
+    assert op.reports[0][0] == {"INFO"} and "DanceNet Dancer" in op.reports[0][1]
+    assert bpy.data.objects["DanceNet Dancer"].animation_data.action is not None
+
+
+def test_file_saved_mid_generation_does_not_load_busy(scene, addon, tmp_path):
+    bpy.context.window_manager.dancenet.running = True
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "busy.blend"))
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "busy.blend"))
+    assert not bpy.context.window_manager.dancenet.running
+
+
+def test_generator_errors_are_reported(scene, addon, song, monkeypatch):
+    def failing(**_kwargs):
+        raise DanceNetError("could not decode the song")
+
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: failing)
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError, match="could not decode the song"):
+        generate(scene, song)
+    before["props"].update(music_source="FILE", music_file=str(song))
+    assert snapshot(scene) == before
+
+
+class LayoutRecorder:
+    """Stands in for UILayout (none exists without a window): checks every prop and operator drawn."""
+
+    def __init__(self) -> None:
+        self.drawn: list[str] = []
+        self.enabled, self.scale_y = True, 1.0
+
+    def _child(self, *_args, **_kwargs) -> LayoutRecorder:
+        return self
+
+    row = column = box = _child
+
+    def prop(self, data, name: str, **_kwargs) -> None:
+        assert name in data.bl_rna.properties, name
+        self.drawn.append(name)
+
+    def operator(self, idname: str, **_kwargs) -> None:
+        module, name = idname.split(".")
+        assert hasattr(bpy.types, f"{module.upper()}_OT_{name}"), idname
+        self.drawn.append(idname)
+
+    def label(self, text: str = "", **_kwargs) -> None:
+        self.drawn.append(f"label:{text}")
+
+    def progress(self, factor: float, text: str = "", **_kwargs) -> None:
+        assert 0.0 <= factor <= 1.0
+        self.drawn.append(f"progress:{text}")
+
+
+@pytest.mark.parametrize("target", ["NEW", "EXISTING"])
+def test_panel_draws_every_setting(scene, addon, song, target):
+    generate(scene, song)  # a rig with a dance, an analysis to show
+    scene.dancenet.target = target
+    for panel in addon.panels.CLASSES:
+        layout = LayoutRecorder()
+        panel.draw(SimpleNamespace(layout=layout), bpy.context)
+        assert {"music_source", "music_file", "style", "seed", "temperature", "takes", "footfix"} <= set(
+            layout.drawn
+        )
+        assert "dancenet.generate" in layout.drawn and "dancenet.export_fbx" in layout.drawn
+        assert "progress:Hiphop 70%" in layout.drawn
+        assert ("bone_map" in layout.drawn) == (target == "EXISTING")
+
+
+# --- exports ---------------------------------------------------------------------------------------
+
+
+def test_bvh_and_fbx_reimport_with_the_same_motion(scene, addon, song, tmp_path):
+    generate(scene, song)
+    rig = bpy.data.objects["DanceNet Dancer"]
+    assert bpy.ops.dancenet.export_bvh(filepath=str(tmp_path / "d.bvh")) == {"FINISHED"}
+    assert bpy.ops.dancenet.export_fbx(filepath=str(tmp_path / "d.fbx")) == {"FINISHED"}
+    assert "OFFSET 0.000000 0.950000 0.000000" in (tmp_path / "d.bvh").read_text()[:200]  # Y up, metres
+
+    frames = (scene.frame_start, scene.frame_start + 20, scene.frame_end)
+    reference = {}
+    for f in frames:
+        scene.frame_set(f)
+        reference[f] = world_heads(rig, JOINT_NAMES)
+
+    def imported(op, **kwargs):
+        before = set(bpy.data.objects)
+        op(**kwargs)
+        return next(o for o in set(bpy.data.objects) - before if o.type == "ARMATURE")
+
+    bvh = imported(bpy.ops.import_anim.bvh, filepath=str(tmp_path / "d.bvh"), frame_start=scene.frame_start)
+    fbx = imported(bpy.ops.import_scene.fbx, filepath=str(tmp_path / "d.fbx"))
+    for f in frames:
+        scene.frame_set(f)
+        assert np.abs(world_heads(bvh, JOINT_NAMES) - reference[f]).max() < MM
+        scene.frame_set(f + 1)  # Blender's FBX importer starts the animation one frame later
+        assert np.abs(world_heads(fbx, JOINT_NAMES) - reference[f]).max() < MM
+
+
+# --- batch mode ------------------------------------------------------------------------------------
+
+
+def test_batch_writes_one_folder_per_song_and_fails_the_bad_one(addon, tmp_path, capsys):
+    from blender_addon import batch
+
+    good = write_song(tmp_path / "good.wav", 1.0)
+    code = batch.main(
+        [
+            str(good),
+            str(tmp_path / "missing.wav"),
+            "--out",
+            str(tmp_path / "out"),
+            "--bvh",
+            "--fbx",
+            "--takes",
+            "2",
+        ],
+        generator=make_fake_generator(),
+    )
+    lines = capsys.readouterr().out.splitlines()  # among the exporters' own chatter
+    out = [line for line in lines if line.startswith(("OK ", "FAILED ")) or line.endswith("songs done")]
+    assert code == 1
+    assert out[0].startswith("OK      good.wav: hiphop, 1.0 s, 2 takes")
+    assert out[1].startswith("FAILED  missing.wav: Audio file not found")
+    assert out[2] == "1 of 2 songs done"
+    assert {p.name for p in (tmp_path / "out" / "good").iterdir()} == {"good.blend", "good.bvh", "good.fbx"}
+
+
+def test_batch_renders_a_preview_video(addon, tmp_path, capsys):
+    from blender_addon import batch
+
+    song = write_song(tmp_path / "short.wav", 0.5)
+    code = batch.main(
+        [str(song), "--out", str(tmp_path), "--render", "--resolution", "96x64"],
+        generator=make_fake_generator(),
+    )
+    assert code == 0, capsys.readouterr().out
+    video = tmp_path / "short" / "short.mp4"
+    assert video.is_file() and video.stat().st_size > 1000
+    assert bpy.context.scene.render.engine == "BLENDER_WORKBENCH"
+
+
+def _run_python(code: str, tmp_path: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    env = {**os.environ, **BLENDER_ENV, "HOME": str(tmp_path / "home"), "PYTHONPATH": str(ROOT / "tests")}
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout
+    )
+
+
+def test_batch_command_line_exits_non_zero_on_failure(tmp_path):
+    env = {**os.environ, **BLENDER_ENV, "HOME": str(tmp_path / "home")}
+    run = subprocess.run(
+        [sys.executable, "blender_addon/batch.py", str(tmp_path / "nope.wav"), "--out", str(tmp_path)],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    assert "FAILED  nope.wav: Audio file not found" in run.stdout
+    assert "Traceback" not in run.stderr
+
+
+def test_addon_registers_and_reports_without_its_dependencies(tmp_path):
+    song = write_song(tmp_path / "s.wav", 1.0)
+    code = f"""
+import sys
+for name in ("torch", "scipy", "madmom"):
+    sys.modules[name] = None  # as in a Blender without them
+import bpy, blender_addon
+blender_addon.register()
+from blender_addon import deps
+print("MISSING", deps.missing())
+assert bpy.ops.dancenet.add_rig() == {{"FINISHED"}}
+bpy.context.scene.dancenet.music_file = {str(song)!r}
+try:
+    bpy.ops.dancenet.generate()
+except RuntimeError as e:
+    print("REPORT", e)
+blender_addon.unregister()
+"""
+    run = _run_python(code, tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "MISSING ['torch', 'scipy', 'madmom']" in run.stdout
+    assert "REPORT Error: Missing Python packages: torch, scipy, madmom." in run.stdout

@@ -1,0 +1,202 @@
+"""Style classifier: shapes, window aggregation, names from metadata, the fixed split, the shipped weights
+on a held-out real song, and `dancenet analyze`."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+import torch
+from torch import nn
+
+from dancenet_core import cli
+from dancenet_core import style as S
+from dancenet_core.audio import load_audio
+from dancenet_core.features import analyze_audio
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data")) / "dance_with_melody"
+needs_data = pytest.mark.skipif(
+    not (DATA / "manifest.csv").is_file(), reason=f"no Dance with Melody data at {DATA}"
+)
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread() -> object:
+    """Two OpenMP threads on a busy two-core machine are many times slower than one."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+@pytest.mark.parametrize("arch", S.ARCHS)
+@pytest.mark.parametrize("frames", [300, 37])
+def test_forward_shapes(arch: str, frames: int) -> None:
+    net = S.build_net(arch, 3).eval()
+    assert net(torch.randn(4, frames, 15)).shape == (4, 3)
+
+
+def test_conv_layers_follow_the_paper() -> None:
+    convs = [m for m in S.StyleConvNet(2).modules() if isinstance(m, nn.Conv2d)]
+    assert [(c.in_channels, c.out_channels, c.kernel_size) for c in convs] == [
+        (1, 16, (2, 1)),
+        (16, 24, (2, 1)),
+        (24, 32, (2, 1)),
+    ]
+    assert len([m for m in S.StyleConvNet(2).modules() if isinstance(m, nn.BatchNorm2d)]) == 3
+    assert S.StyleConvNet(2).lstm.bidirectional
+
+
+def test_window_starts() -> None:
+    np.testing.assert_array_equal(S.window_starts(1000, 300, 50), list(range(0, 701, 50)))
+    np.testing.assert_array_equal(S.window_starts(1020, 300, 50), [*range(0, 701, 50), 720])
+    np.testing.assert_array_equal(S.window_starts(300, 300, 50), [0])
+    np.testing.assert_array_equal(S.window_starts(120, 300, 50), [0])
+
+
+class _MeanOfColumn(nn.Module):
+    """Logits (m, -m) from the mean of feature 0: a model whose window outputs are known in advance."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        m = x[:, :, 0].mean(dim=1, keepdim=True)
+        return torch.cat([m, -m], dim=1)
+
+
+def test_song_style_is_mean_of_window_probabilities() -> None:
+    model = S.StyleModel(_MeanOfColumn(), "conv", ["slow", "fast"], {})
+    feats = np.zeros((1000, 15), np.float32)
+    feats[:500, 0] = 3.0
+    feats[500:, 0] = -1.0
+    r = model.classify(feats)
+    assert r.window_probabilities.shape == (15, 2)
+    np.testing.assert_allclose(r.window_starts_s, np.arange(0, 71, 5))
+    np.testing.assert_allclose(r.probabilities, r.window_probabilities.mean(axis=0), rtol=1e-6)
+    assert r.window_styles()[0] == "slow" and r.window_styles()[-1] == "fast"
+    assert r.style == ("slow" if r.probabilities[0] > 0.5 else "fast")
+    assert r.to_dict()["windows"][0]["style"] == "slow"
+    short = model.classify(feats[:120])  # shorter than a window: one shorter window
+    assert short.window_probabilities.shape == (1, 2) and short.window_s == 12.0
+
+
+def test_style_names_come_from_metadata(tmp_path: Path) -> None:
+    for arch in S.ARCHS:
+        model = S.StyleModel(S.build_net(arch, 2), arch, ["polka", "tango"], {"hidden": 64, "dropout": 0.2})
+        model.save(tmp_path / f"{arch}.pt")
+        loaded = S.StyleModel.load(tmp_path / f"{arch}.pt")
+        assert loaded.styles == ("polka", "tango") and loaded.arch == arch
+        feats = np.random.default_rng(0).random((400, 15), dtype=np.float32)
+        assert loaded.classify(feats).style in ("polka", "tango")
+        np.testing.assert_allclose(model.classify(feats).probabilities, loaded.classify(feats).probabilities)
+
+
+def test_load_errors_are_user_facing(tmp_path: Path) -> None:
+    with pytest.raises(S.DanceNetError, match="not found"):
+        S.StyleModel.load(tmp_path / "missing.pt")
+    torch.save({"something": 1}, tmp_path / "other.pt")
+    with pytest.raises(S.DanceNetError, match="not a dancenet style model"):
+        S.StyleModel.load(tmp_path / "other.pt")
+    (tmp_path / "broken.pt").write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(S.DanceNetError, match="cannot read the style model"):
+        S.StyleModel.load(tmp_path / "broken.pt")
+
+
+ROWS = (
+    [{"seq": f"DANCE_W_{i}", "style": "waltz"} for i in range(1, 11)]
+    + [{"seq": f"DANCE_C_{i}", "style": "cha-cha"} for i in range(1, 6)]
+    + [{"seq": "DANCE_T_1", "style": "tango"}]
+)
+
+
+def test_split_is_by_song_stratified_and_fixed() -> None:
+    split = S.make_split(ROWS, seed=7)
+    assert split == S.make_split(ROWS, seed=7)
+    assert not set(split["train"]) & set(split["test"])
+    assert sorted(split["train"] + split["test"] + list(split["excluded"])) == sorted(r["seq"] for r in ROWS)
+    assert sum(s.startswith("DANCE_W") for s in split["test"]) == 2
+    assert sum(s.startswith("DANCE_C") for s in split["test"]) == 1
+    assert list(split["excluded"]) == ["DANCE_T_1"] and "only song" in split["excluded"]["DANCE_T_1"]
+
+
+def test_training_learns_a_separable_toy_problem() -> None:
+    rng = np.random.default_rng(0)
+    songs = [
+        S.Song(f"s{i}", style, rng.random((330, 15), dtype=np.float32) * 0.2 + (0.8 if style == "b" else 0.0))
+        for i, style in enumerate(["a", "b"] * 3)
+    ]
+    model = S.train_model("conv", songs, ["a", "b"], epochs=10, lr=3e-3, batch=8, seed=0, log=lambda _m: None)
+    metrics = S.evaluate(model, songs)
+    assert metrics["song_accuracy"] == 1.0 and metrics["songs"] == 6
+    assert np.array(metrics["confusion_song"]).sum() == 6
+
+
+# --------------------------------------------------------------------------- shipped weights and real data
+
+
+def test_shipped_models_load() -> None:
+    for path, arch in ((S.DEFAULT_WEIGHTS, "conv"), (S.BASELINE_WEIGHTS, "baseline")):
+        model = S.StyleModel.load(path)
+        assert model.arch == arch and len(model.styles) >= 2
+        assert model.window == 300 and model.fps == 10
+        assert path.stat().st_size < 5_000_000
+
+
+def test_shipped_split_file() -> None:
+    split = json.loads(S.SPLIT_FILE.read_text())
+    assert {"seed", "train", "test", "excluded"} <= set(split)
+    assert not set(split["train"]) & set(split["test"]) and not set(split["excluded"]) & set(split["test"])
+
+
+@needs_data
+def test_shipped_split_covers_the_data_and_model_styles() -> None:
+    split = json.loads(S.SPLIT_FILE.read_text())
+    style_of = {r["seq"]: r["style"] for r in S.read_manifest(DATA)}
+    assert sorted(split["train"] + split["test"] + list(split["excluded"])) == sorted(style_of)
+    train_styles = {style_of[s] for s in split["train"]}
+    assert {style_of[s] for s in split["test"]} == train_styles
+    for path in (S.DEFAULT_WEIGHTS, S.BASELINE_WEIGHTS):
+        assert S.StyleModel.load(path).styles == tuple(sorted(train_styles))
+
+
+@needs_data
+def test_shipped_model_on_held_out_song() -> None:
+    """The first 40 s of the shortest held-out song: a valid style and probability from the shipped model."""
+    split = json.loads(S.SPLIT_FILE.read_text())
+    rows = {r["seq"]: r for r in S.read_manifest(DATA)}
+    seq = min(split["test"], key=lambda s: float(rows[s]["song_s"]))
+    audio = load_audio(DATA / f"{seq}.ogg")
+    audio.samples = audio.samples[: 40 * audio.sample_rate]
+    features = analyze_audio(audio).features
+    model = S.StyleModel.load()
+    result = model.classify(features)
+    assert rows[seq]["style"] in model.styles
+    assert result.style in model.styles and result.probabilities.sum() == pytest.approx(1.0, abs=1e-5)
+    assert len(result.window_starts_s) == 3  # 0, 5 and 10 s
+
+
+def test_analyze_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    song = tmp_path / "clicks.wav"
+    t = np.arange(8 * 44100) / 44100
+    sf.write(str(song), (0.5 * np.sin(2 * np.pi * 880 * t) * (t % 0.5 < 0.03)).astype(np.float32), 44100)
+    out = tmp_path / "analysis.json"
+    rc = cli.main(["analyze", str(song), "--json", str(out), "--cache-dir", str(tmp_path / "cache")])
+    printed = capsys.readouterr().out
+    assert rc == 0
+    for word in ("tempo:", "style:", "beats:", "downbeats:", "time:"):
+        assert word in printed
+    data = json.loads(out.read_text())
+    assert data["features"]["shape"] == [80, 15]
+    assert len(data["beat_times"]) >= 10 and data["tempo_bpm"] == pytest.approx(120, rel=0.05)
+    assert data["style"]["style"] in S.StyleModel.load().styles and data["style"]["windows"]
+
+
+def test_analyze_command_error_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "song.mp3"
+    bad.write_bytes(b"\x00garbage" * 1000)
+    assert cli.main(["analyze", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dancenet: error:") and "\n" not in err
