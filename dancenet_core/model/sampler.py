@@ -156,8 +156,11 @@ class CachedSampler:
             np.concatenate([wk(layer.filter, 1), wk(layer.gate, 1), wk(layer.filter, 0), wk(layer.gate, 0)], 1)
             for layer in model.layers
         ], dtype=np.float32)  # fmt: skip
-        self.cond_w = [wk(layer.cond, 0) for layer in model.layers]
-        self.cond_b = [np.concatenate([b(layer.filter), b(layer.gate)]) + b(layer.cond) for layer in model.layers]
+        # All layers' conditioning convs as one matrix: one matrix product per song gives every frame's input.
+        self.cond_w = np.concatenate([wk(layer.cond, 0) for layer in model.layers], 1, dtype=np.float32)
+        self.cond_b = np.concatenate(
+            [np.concatenate([b(layer.filter), b(layer.gate)]) + b(layer.cond) for layer in model.layers]
+        ).astype(np.float32)
         self.w_res = np.stack([wk(layer.res, 0) for layer in model.layers], dtype=np.float32)
         self.b_res = np.stack([b(layer.res) for layer in model.layers]).astype(np.float32)
         self.skip_w = np.concatenate([wk(layer.skip, 0) for layer in model.layers], 0, dtype=np.float32)
@@ -169,9 +172,8 @@ class CachedSampler:
 
     def layer_conditioning(self, cond: np.ndarray) -> np.ndarray:
         """Per frame and layer, the conditioning's contribution [T, L, 2R] (computed once per song)."""
-        return np.stack([cond @ cw + cb for cw, cb in zip(self.cond_w, self.cond_b, strict=True)], 1).astype(
-            np.float32
-        )
+        lc = np.asarray(cond, dtype=np.float32) @ self.cond_w + self.cond_b
+        return lc.reshape(len(cond), self.cfg.layers, 2 * self.cfg.residual_channels)
 
     def run(
         self,
