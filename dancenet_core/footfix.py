@@ -80,12 +80,17 @@ class LstmBaseline(nn.Module):
 
 
 def simulate_sliding(x: np.ndarray, ch: FootChannels, rng: np.random.Generator) -> np.ndarray:
-    """Real frames [B, T, D] (normalised) -> the same with a smoothed, noisy lower body and toes."""
+    """Real frames [B, T, D] (normalised) -> the same with sliding feet: the lower body and toes smoothed
+    and noisy (the supplement's recipe), plus a slow random drift on the root's steps and turns, which is
+    what makes a planted foot skate."""
     y = x.copy()
     cols = np.concatenate([ch.lower, ch.toes])
     for b in range(len(y)):
         sigma = rng.uniform(1.0, 4.0)
         y[b][:, cols] = gaussian_filter1d(y[b][:, cols], sigma, axis=0, mode="nearest")
+        drift = gaussian_filter1d(rng.normal(0, 1, (len(y[b]), 3)), rng.uniform(3.0, 10.0), axis=0)
+        drift *= rng.uniform(0.0, 0.5) / (drift.std(0) + 1e-9)
+        y[b][:, ch.lower[[0, 2, 3]]] += drift.astype(np.float32)  # root dx, dz, dyaw
     y[..., cols] += rng.normal(0, rng.uniform(0.02, 0.1), y[..., cols].shape).astype(np.float32)
     return y
 
