@@ -103,3 +103,14 @@ def test_windows_keep_music_with_motion_and_balance_clusters() -> None:
 def test_mirror_twice_gives_the_same_features() -> None:
     m = Motion(np.random.default_rng(3).normal(0, 0.3, (50, 55, 3)), np.zeros((50, 3)) + [0, 0.9, 0], 25.0)
     np.testing.assert_allclose(encode(m.mirrored().mirrored()), encode(m), atol=1e-6)
+
+
+def test_split_is_by_song_and_fixed() -> None:
+    from dancenet_core.data.build import load_split
+
+    split = load_split()
+    train, test = set(split["train"]), set(split["test"])
+    assert train and test and not train & test
+    assert not (train | test) & set(split["excluded"])  # tango's single song is in neither
+    styles = {s.split("_")[1] for s in test}
+    assert styles == {"C", "R", "W"}  # every shipped style is held out somewhere
