@@ -49,7 +49,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--out", type=Path, required=True, help="output folder (one subfolder per song)")
     p.add_argument("--style", default="auto", help="dance style, or auto (the classifier picks)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--temperature", type=float, default=0.3, help="0 = the most likely dance (default 0.3)")
+    p.add_argument("--temperature", type=float, default=0.1, help="0 = the most likely dance (default 0.1)")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
     p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
     p.add_argument("--fps", type=int, help="scene frame rate (default: the model's own rate, no resampling)")

@@ -58,7 +58,7 @@ class GenerationRequest:
     song: Path
     style: str = "auto"
     seed: int = 0
-    temperature: float = 0.3  # the core's DEFAULT_TEMPERATURE
+    temperature: float = 0.1  # the core's DEFAULT_TEMPERATURE
     takes: int = 1
     footfix: bool = True
 

@@ -54,7 +54,7 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         name="Seed", min=0, default=0, description="Another seed, another dance to the same song"
     )
     temperature: FloatProperty(
-        name="Temperature", min=0.0, max=3.0, soft_max=1.0, default=0.3,  # the core's DEFAULT_TEMPERATURE
+        name="Temperature", min=0.0, max=3.0, soft_max=1.0, default=0.1,  # the core's DEFAULT_TEMPERATURE
         description="0: the most likely dance. Higher: bolder, less predictable moves",
     )  # fmt: skip
     takes: IntProperty(
