@@ -73,7 +73,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     model = DanceNet(cfg)
     model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
     model.to(device)
-    net = torch.nn.parallel.DistributedDataParallel(model) if world > 1 else model
+    net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 else model
     opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
 
     train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
