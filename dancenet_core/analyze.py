@@ -52,8 +52,7 @@ def run(args: argparse.Namespace) -> int:
     style = model.classify(analysis.features, analysis.fps)
     elapsed = time.time() - t0
     probs = ", ".join(
-        f"{s} {p:.2f}"
-        for s, p in sorted(zip(style.styles, style.probabilities, strict=True), key=lambda sp: -sp[1])
+        f"{s} {p:.2f}" for s, p in sorted(zip(style.styles, style.probabilities, strict=True), key=lambda sp: -sp[1])
     )
     print(f"song:      {song.name} ({analysis.duration_s:.1f} s)")
     print(f"tempo:     {analysis.tempo_bpm:.1f} BPM")

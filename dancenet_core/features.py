@@ -22,6 +22,7 @@ import hashlib
 import json
 import multiprocessing as mp
 import os
+import sys
 import warnings
 from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -178,9 +179,7 @@ def analyze_music(
     return result if with_mel else _without_mel(result)
 
 
-def analyze_audio(
-    audio: Audio, *, workers: int | None = None, progress: Progress | None = None
-) -> MusicAnalysis:
+def analyze_audio(audio: Audio, *, workers: int | None = None, progress: Progress | None = None) -> MusicAnalysis:
     """Run the networks block by block, stitch the activations, track beats; mel is always included."""
     report = progress or (lambda _f: None)
     if audio.sample_rate != MADMOM_SAMPLE_RATE:
@@ -193,9 +192,7 @@ def analyze_audio(
         onset, act, chroma, mel = (np.concatenate([p[k] for p in parts]) for k in range(4))
         windows = _blocks(len(act), DBN_BLOCK_S * ACT_FPS, DBN_CONTEXT_S * ACT_FPS)
         jobs = [(act[s0:s1], c0 - s0, c1 - s0, s0 / ACT_FPS) for s0, c0, c1, s1 in windows]
-        beat_times, downbeat_times = _merge_beats(
-            _run_all(ex, _dbn_window, jobs, lambda f: report(0.9 + 0.09 * f))
-        )
+        beat_times, downbeat_times = _merge_beats(_run_all(ex, _dbn_window, jobs, lambda f: report(0.9 + 0.09 * f)))
     t = int(np.floor(n / _HOP_10 + 0.5))
     features = np.empty((t, N_FEATURES), np.float32)
     features[:, CHROMA_COLS] = chroma[:t]
@@ -249,11 +246,20 @@ def _stretch(a: np.ndarray, m: int) -> np.ndarray:
 def _executor(workers: int | None, jobs: int) -> Executor:
     """Worker processes (forked, so nothing is re-imported) where the platform allows, else in-process."""
     if workers is None:
-        workers = min(2, os.cpu_count() or 1)
+        workers = _default_workers()
     workers = min(workers, jobs)
     if workers > 1 and "fork" in mp.get_all_start_methods():
         return ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"))
     return _InlineExecutor()
+
+
+def _default_workers() -> int:
+    """$DANCENET_WORKERS, else 2 (the networks are single-threaded); 1 inside Blender, whose process (GUI
+    threads, its own allocators) is not worth the risk of forking."""
+    env = os.environ.get("DANCENET_WORKERS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    return 1 if "bpy" in sys.modules else min(2, os.cpu_count() or 1)
 
 
 class _InlineExecutor(Executor):

@@ -22,9 +22,9 @@ DUR = 4.0
 def wave(sr: int, dur: float = DUR) -> np.ndarray:
     """A non-periodic test signal (log chirp 150 Hz-3 kHz, slow tremolo), defined at any sample rate."""
     t = np.arange(int(round(sr * dur))) / sr
-    return (
-        0.4 * chirp(t, 150, dur, 3000, method="logarithmic") * (0.6 + 0.4 * np.sin(2 * np.pi * 1.3 * t))
-    ).astype(np.float32)
+    return (0.4 * chirp(t, 150, dur, 3000, method="logarithmic") * (0.6 + 0.4 * np.sin(2 * np.pi * 1.3 * t))).astype(
+        np.float32
+    )
 
 
 def write(path: Path, sr: int, channels: int, fmt: str, subtype: str) -> np.ndarray:
@@ -83,9 +83,7 @@ def test_ffmpeg_encoded_files_align(tmp_path: Path, ext: str) -> None:
     assert rel_rms(got, expected) < 0.1
 
 
-def test_block_decoding_and_resampling_match_one_shot(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_block_decoding_and_resampling_match_one_shot(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Tiny blocks force every seam path that a 30-minute song takes."""
     monkeypatch.setattr(audio, "_DECODE_BLOCK", 1000)
     monkeypatch.setattr(audio, "_RESAMPLE_BLOCK", 5000)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -180,9 +181,7 @@ def test_cache_dir_from_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
 
 def test_save_load_roundtrip(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
-    a = MusicAnalysis(
-        rng.random((50, 15), dtype=np.float32), np.array([0.5, 1.0]), np.array([0.5]), 120.0, 5.0
-    )
+    a = MusicAnalysis(rng.random((50, 15), dtype=np.float32), np.array([0.5, 1.0]), np.array([0.5]), 120.0, 5.0)
     a.save(tmp_path / "a.npz")
     b = MusicAnalysis.load(tmp_path / "a.npz")
     np.testing.assert_array_equal(a.features, b.features)
@@ -214,3 +213,11 @@ def test_silent_and_short(tmp_path: Path) -> None:
     with pytest.raises(DanceNetError, match="too short"):
         analyze_music(short, cache_dir=tmp_path / "cache")
     assert not list((tmp_path / "cache").glob("*.npz"))
+
+
+def test_default_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("DANCENET_WORKERS", "3")
+    assert F._default_workers() == 3
+    monkeypatch.delenv("DANCENET_WORKERS")
+    monkeypatch.setitem(sys.modules, "bpy", object())
+    assert F._default_workers() == 1  # never fork Blender

@@ -20,9 +20,7 @@ from dancenet_core.features import analyze_audio
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data")) / "dance_with_melody"
-needs_data = pytest.mark.skipif(
-    not (DATA / "manifest.csv").is_file(), reason=f"no Dance with Melody data at {DATA}"
-)
+needs_data = pytest.mark.skipif(not (DATA / "manifest.csv").is_file(), reason=f"no Dance with Melody data at {DATA}")
 
 
 @pytest.fixture(autouse=True)
@@ -132,6 +130,20 @@ def test_training_learns_a_separable_toy_problem() -> None:
     metrics = S.evaluate(model, songs)
     assert metrics["song_accuracy"] == 1.0 and metrics["songs"] == 6
     assert np.array(metrics["confusion_song"]).sum() == 6
+    metrics.update(train={"window_accuracy": 1.0}, train_seconds=1)
+    model.meta["training"] = {"epochs": 10, "lr": 3e-3, "batch": 8, "seed": 0, "metrics": metrics}
+    rows = [{"seq": s.seq, "style": s.style, "song_s": "33"} for s in songs]
+    split = {
+        "seed": 0,
+        "test_fraction": 0.5,
+        "train": ["s0", "s1", "s2", "s3"],
+        "test": ["s4", "s5"],
+        "excluded": {"s5": "a reason"},
+    }
+    card = S.model_card(model, model, split, rows)
+    assert "| Ours (Temporal Conv + Bi-LSTM) | 100.0% | 100.0% | 100.0% | 100.0% | 100.0% | 1 s |" in card
+    assert "| Always the most common style | 50.0% | 50.0% | 50.0% | 50.0% | - | - |" in card
+    assert "ours gets 3 of 3 right" in card and "- s5 (b): a reason" in card
 
 
 # --------------------------------------------------------------------------- shipped weights and real data
