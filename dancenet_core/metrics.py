@@ -37,27 +37,27 @@ def motion_beats(positions: np.ndarray, fps: float) -> np.ndarray:
     return argrelextrema(v, np.less)[0]
 
 
-def beat_align_score(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> float:
-    """Bailando's BAS: mean over music beats of exp(-d^2 / 2 sigma^2), d = distance to the nearest dance beat."""
+def _beat_distances(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> np.ndarray:
+    """For each music beat within the dance, the distance (s) to the nearest dance beat; empty if none."""
     duration = len(positions) / fps
     beats = np.asarray(music_beats_s)
     beats = beats[(beats >= 0) & (beats < duration)]
     dance = motion_beats(positions, fps) / fps
     if len(beats) == 0 or len(dance) == 0:
-        return 0.0
-    d = np.abs(beats[:, None] - dance[None, :]).min(axis=1)
-    return float(np.mean(np.exp(-(d**2) / (2 * BAS_SIGMA_S**2))))
+        return np.zeros(0)
+    return np.abs(beats[:, None] - dance[None, :]).min(axis=1)
+
+
+def beat_align_score(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> float:
+    """Bailando's BAS: mean over music beats of exp(-d^2 / 2 sigma^2), d = distance to the nearest dance beat."""
+    d = _beat_distances(positions, fps, music_beats_s)
+    return float(np.mean(np.exp(-(d**2) / (2 * BAS_SIGMA_S**2)))) if len(d) else 0.0
 
 
 def rhythm_hit_rate(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> float:
     """The paper's rhythm hit rate: share of music beats with a dance beat within 0.25 s."""
-    duration = len(positions) / fps
-    beats = np.asarray(music_beats_s)
-    beats = beats[(beats >= 0) & (beats < duration)]
-    dance = motion_beats(positions, fps) / fps
-    if len(beats) == 0 or len(dance) == 0:
-        return 0.0
-    return float(np.mean(np.abs(beats[:, None] - dance[None, :]).min(axis=1) <= HIT_WINDOW_S))
+    d = _beat_distances(positions, fps, music_beats_s)
+    return float(np.mean(d <= HIT_WINDOW_S)) if len(d) else 0.0
 
 
 @dataclass
