@@ -7,7 +7,8 @@ authors' music encoder), BatchNorm and ReLU, then a Bi-LSTM over time and a full
 time-averaged output. A song's style is the mean of its windows' probabilities. Style names live in the
 checkpoint's metadata, never in code, so a model trained on other styles needs no code change.
 
-Train: `python -m dancenet_core.style train --data DIR --out DIR` (DIR holds manifest.csv and the songs).
+Train: `python -m dancenet_core.style train --data DIR --out DIR` (DIR holds manifest.csv and the songs);
+`... card --data DIR --out DIR` rewrites the model card from the checkpoints' stored metrics.
 """
 
 from __future__ import annotations
