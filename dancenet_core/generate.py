@@ -91,13 +91,15 @@ def sample_dance(bundle, cond: np.ndarray, first: np.ndarray, sampling, progress
     from .model.sampler import CachedSampler
 
     frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop)
+    return [finish_frames(bundle, take) for take in frames]
+
+
+def finish_frames(bundle, frames: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance)."""
     cont = bundle.model.cfg.continuous_dim
-    out = []
-    for take in frames:
-        feats = bundle.normalizer.denormalize(take)
-        feats[:, :cont] = gaussian_filter1d(feats[:, :cont], OUTPUT_SMOOTHING_FRAMES, axis=0, mode="nearest")
-        out.append(feats)
-    return out
+    feats = bundle.normalizer.denormalize(frames)
+    feats[:, :cont] = gaussian_filter1d(feats[:, :cont], OUTPUT_SMOOTHING_FRAMES, axis=0, mode="nearest")
+    return feats
 
 
 def generate_dance(

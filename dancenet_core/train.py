@@ -1,4 +1,5 @@
-"""Train DanceNet on the paired dataset (supplement's settings, sized for a 2-core CPU).
+"""Train DanceNet (or, with --variant, an ablation or baseline of the paper's comparison) on the paired
+dataset (supplement's settings, sized for a 2-core CPU).
 
 Runs in the background with checkpoints (resume with --resume), a fixed seed, and a JSON-lines log of
 train and test loss. Under `torchrun --nproc_per_node N` it trains data-parallel (gloo on CPU, nccl on
@@ -19,10 +20,17 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from .data.build import PairedSequence, build_dataset, default_data_dir, load_split, mean_skeleton
+from .data.build import (
+    PairedSequence,
+    build_dataset,
+    default_data_dir,
+    load_split,
+    mean_skeleton,
+    with_mel_music,
+)
 from .data.windows import WindowSampler
 from .model.bundle import DanceNetBundle
-from .model.dancenet import DanceNet, DanceNetConfig, dancenet_loss
+from .model.variants import build_model, music_features
 from .representation import FeatureLayout, Normalizer
 
 MIN_STYLE_SEQUENCES = 2  # a style danced in fewer training sequences cannot be learned or held out
@@ -60,6 +68,8 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
 
     if pairs is None:
         pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
+        if music_features(args.variant) == "mel":
+            pairs = with_mel_music(pairs, args.data or default_data_dir())
     split = split or load_split()
     train_ids, test_ids = set(split["train"]), set(split["test"])
     styles, left_out = shipped_styles(pairs, train_ids)
@@ -68,9 +78,8 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     layout = FeatureLayout(55, 5)
     norm = Normalizer.fit([p.motion for p in train_pairs] + [p.mirrored for p in train_pairs],
                           binary=layout.contacts)
-    cfg = DanceNetConfig(motion_dim=layout.size, continuous_dim=layout.continuous.stop, styles=styles,
-                         fps=25.0, music_window=args.window)
-    model = DanceNet(cfg)
+    model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window)
+    cfg = model.cfg
     model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
     model.to(device)
     net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 else model
@@ -81,6 +90,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
                                  seed=args.seed).fixed_windows(64)
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
+        "variant": args.variant,
         "data": "Dance with Melody (Tang et al. 2018), training split of weights/song_split.json",
         "train_sequences": sorted(p.seq for p in train_pairs),
         "test_sequences": sorted(p.seq for p in test_pairs),
@@ -111,11 +121,11 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
         model.eval()
         with torch.no_grad():
             tb = test_windows
-            o = model(torch.tensor(tb.motion, device=device), torch.tensor(tb.music, device=device),
-                      torch.tensor(tb.style, device=device))
-            loss, parts = dancenet_loss(model, o, torch.tensor(tb.target[:, 1:], device=device))
+            music = torch.tensor(tb.music, device=device)
+            o = model(torch.tensor(tb.motion, device=device), music, torch.tensor(tb.style, device=device))
+            loss, parts = model.loss(o, torch.tensor(tb.target[:, 1:], device=device), music[:, 1:])
         model.train()
-        return {"test_loss": loss.item(), "test_nll": parts["nll"], "test_bce": parts["bce"]}
+        return {"test_loss": loss.item()} | {f"test_{k}": v for k, v in parts.items()}
 
     log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
     model.train()
@@ -125,8 +135,9 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
         b = train_windows.batch(rng, args.batch)
         x = torch.tensor(b.motion, device=device)
         x = F.dropout(x, cfg.input_dropout, training=True)
-        o = net(x, torch.tensor(b.music, device=device), torch.tensor(b.style, device=device))
-        loss, parts = dancenet_loss(model, o, torch.tensor(b.target[:, 1:], device=device))
+        music = torch.tensor(b.music, device=device)
+        o = net(x, music, torch.tensor(b.style, device=device))
+        loss, parts = model.loss(o, torch.tensor(b.target[:, 1:], device=device), music[:, 1:])
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -165,6 +176,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    p.add_argument("--variant", default="dancenet", help="model of the paper's comparison (model/variants.py)")
     p.add_argument("--out", type=Path, default=Path("runs/dancenet"))
     p.add_argument("--minutes", type=float, default=100.0, help="training time budget")
     p.add_argument("--steps", type=int, default=6000, help="planned steps (lr drops by 10 at 77%%)")

@@ -1,5 +1,6 @@
 """A trained DanceNet with everything generation needs: config, weights, normaliser, styles, start
 frames and the skeleton its dances are decoded onto. One file, shipped in `dancenet_core/weights/`.
+The comparison's baselines (`model/variants.py`) are saved the same way, with their `kind`.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import torch
 from ..errors import DanceNetError
 from ..representation import Normalizer
 from ..skeleton import Skeleton
-from .dancenet import DanceNet, DanceNetConfig
+from .dancenet import DanceNet
 
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 DEFAULT_BUNDLE = WEIGHTS_DIR / "dancenet.pt"
@@ -21,7 +22,7 @@ DEFAULT_BUNDLE = WEIGHTS_DIR / "dancenet.pt"
 
 @dataclass
 class DanceNetBundle:
-    model: DanceNet
+    model: torch.nn.Module  # DanceNet (or a comparison baseline)
     normalizer: Normalizer
     skeleton: Skeleton
     start_frames: dict[str, np.ndarray]  # per style: [N, D] real first frames (unnormalised)
@@ -33,6 +34,7 @@ class DanceNetBundle:
 
     def to_dict(self) -> dict:
         return {
+            "kind": "dancenet" if isinstance(self.model, DanceNet) else self.model.cfg.kind,
             "config": self.model.cfg.to_dict(),
             "state_dict": self.model.state_dict(),
             "normalizer": {"mean": self.normalizer.mean, "std": self.normalizer.std,
@@ -50,8 +52,9 @@ class DanceNetBundle:
 
     @classmethod
     def from_dict(cls, d: dict) -> DanceNetBundle:
-        cfg = DanceNetConfig(**d["config"])
-        model = DanceNet(cfg)
+        from .variants import model_from_config
+
+        model = model_from_config(d.get("kind", "dancenet"), d["config"])
         model.load_state_dict(d["state_dict"])
         model.eval()
         n = d["normalizer"]

@@ -40,6 +40,11 @@ class DanceNetConfig:
     min_log_sigma: float = float(np.log(0.03))
     dropout_music: float = 0.1
     input_dropout: float = 0.4
+    # Ablations of the paper's Table 3/4 (the shipped model uses the defaults): "gmm" or "mse" loss;
+    # "context" (conv + Bi-LSTM) or "frame" (a per-frame linear map, no musical context) music encoder.
+    loss: str = "gmm"
+    music_encoder: str = "context"
+    music_features: str = "onset_beat_chroma"  # or "mel" (music_dim 80)
 
     @property
     def dilations(self) -> list[int]:
@@ -84,6 +89,17 @@ class MusicEncoder(nn.Module):
         return F.interpolate(code, size=frames, mode="linear", align_corners=False).transpose(1, 2)
 
 
+class FrameMusicEncoder(nn.Module):
+    """The ablation without the musical context-aware encoder: each frame's features mapped on their own."""
+
+    def __init__(self, cfg: DanceNetConfig) -> None:
+        super().__init__()
+        self.out = nn.Linear(cfg.music_dim, cfg.music_code)
+
+    def forward(self, music: torch.Tensor) -> torch.Tensor:
+        return self.out(music)
+
+
 class ResidualLayer(nn.Module):
     """Gated dilated causal conv (separate filter and gate convs), conditioned through 1x1 convs."""
 
@@ -109,13 +125,13 @@ class DanceNet(nn.Module):
         super().__init__()
         self.cfg = cfg
         m, r, s = cfg.motion_channels, cfg.residual_channels, cfg.skip_channels
-        self.music_encoder = MusicEncoder(cfg)
+        self.music_encoder = MusicEncoder(cfg) if cfg.music_encoder == "context" else FrameMusicEncoder(cfg)
         self.style_embedding = nn.Embedding(max(1, len(cfg.styles)), cfg.style_dim)
         self.motion_encoder = nn.Sequential(
             nn.Conv1d(cfg.motion_dim, m, 1), nn.ReLU(), nn.Conv1d(m, m, 1), nn.ReLU(), nn.Conv1d(m, r, 1)
         )
         self.layers = nn.ModuleList(ResidualLayer(cfg, d) for d in cfg.dilations)
-        out = cfg.mixtures * (1 + 2 * cfg.continuous_dim) + (cfg.motion_dim - cfg.continuous_dim)
+        out = output_size(cfg)
         self.decoder = nn.Sequential(nn.ReLU(), nn.Conv1d(s, s, 1), nn.ReLU(), nn.Conv1d(s, out, 1))
         # Channels the mixture models (constant ones, e.g. resting fingers, are left out of the loss).
         self.register_buffer("modelled", torch.ones(cfg.continuous_dim, dtype=torch.bool))
@@ -147,13 +163,26 @@ class DanceNet(nn.Module):
         return self.forward_frames(motion[:, :-1], cond[..., 1:])
 
     def split(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Raw outputs -> (mixture logits [.., K], means [.., K, D], log sigmas [.., K, D], contact logits)."""
-        k, d = self.cfg.mixtures, self.cfg.continuous_dim
-        logits = out[..., :k]
-        mu = out[..., k : k + k * d].unflatten(-1, (k, d))
-        log_sigma = out[..., k + k * d : k + 2 * k * d].unflatten(-1, (k, d))
-        log_sigma = self.cfg.min_log_sigma + F.softplus(log_sigma - self.cfg.min_log_sigma)
-        return logits, mu, log_sigma, out[..., k + 2 * k * d :]
+        return split_outputs(out, self.cfg)
+
+    def loss(self, out: torch.Tensor, target: torch.Tensor, music: torch.Tensor) -> tuple[torch.Tensor, dict]:
+        """Training loss of `forward`'s outputs against frames 1..T-1 (music unused: a common signature)."""
+        return dancenet_loss(self, out, target)
+
+
+def output_size(cfg) -> int:  # noqa: ANN001 (any config with mixtures, motion_dim, continuous_dim)
+    """Mixture logits, means and log sigmas of the continuous channels, then contact logits."""
+    return cfg.mixtures * (1 + 2 * cfg.continuous_dim) + (cfg.motion_dim - cfg.continuous_dim)
+
+
+def split_outputs(out: torch.Tensor, cfg) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:  # noqa: ANN001
+    """Raw outputs -> (mixture logits [.., K], means [.., K, D], log sigmas [.., K, D], contact logits)."""
+    k, d = cfg.mixtures, cfg.continuous_dim
+    logits = out[..., :k]
+    mu = out[..., k : k + k * d].unflatten(-1, (k, d))
+    log_sigma = out[..., k + k * d : k + 2 * k * d].unflatten(-1, (k, d))
+    log_sigma = cfg.min_log_sigma + F.softplus(log_sigma - cfg.min_log_sigma)
+    return logits, mu, log_sigma, out[..., k + 2 * k * d :]
 
 
 def mixture_nll(
@@ -167,11 +196,16 @@ def mixture_nll(
 
 
 def dancenet_loss(
-    model: DanceNet, out: torch.Tensor, target: torch.Tensor, contact_weight: float = 0.1
+    model: nn.Module, out: torch.Tensor, target: torch.Tensor, contact_weight: float = 0.1
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    """Mixture NLL + contact_weight x foot-contact BCE (the paper's lambda = 0.1)."""
-    logits, mu, log_sigma, contact_logits = model.split(out)
+    """Mixture NLL (or, for the MSE ablation, squared error of the mean) + contact_weight x foot-contact BCE
+    (the paper's lambda = 0.1). `model` is any network with `cfg`, `modelled` and the shared output layout."""
+    logits, mu, log_sigma, contact_logits = split_outputs(out, model.cfg)
     d = model.cfg.continuous_dim
-    nll = mixture_nll(logits, mu, log_sigma, target[..., :d], model.modelled.to(out.dtype)).mean()
+    mask = model.modelled.to(out.dtype)
     bce = F.binary_cross_entropy_with_logits(contact_logits, target[..., d:].clamp(0, 1))
+    if model.cfg.loss == "mse":  # the sigma outputs stay untrained; such models are sampled at their mean
+        mse = (((mu[..., 0, :] - target[..., :d]) ** 2) * mask).sum(-1).mean() / mask.sum()
+        return mse + contact_weight * bce, {"mse": float(mse.detach()), "bce": float(bce.detach())}
+    nll = mixture_nll(logits, mu, log_sigma, target[..., :d], mask).mean()
     return nll + contact_weight * bce, {"nll": float(nll.detach()), "bce": float(bce.detach())}
