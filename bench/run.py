@@ -1,0 +1,89 @@
+"""Every benchmark in one run, printed as one JSON object: a `summary` with the headline figures and each
+benchmark's full output under `details`. Each benchmark runs in its own fresh process (cold caches and
+honest peak memory); speeds are ratios measured in the same run, because this machine is shared.
+
+    .venv/bin/python bench/run.py [--quick]     (or: make bench)
+
+--quick analyses a 1-minute song instead of a real 3.6-minute one and skips the 10-minute memory run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parent
+
+
+def bench(script: str, *args: str, env: dict[str, str] | None = None) -> dict:
+    """One benchmark's JSON, or {"error": its last line of stderr}."""
+    t = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(BENCH / script), *args], capture_output=True, text=True,
+                          env=os.environ | (env or {}))
+    if proc.returncode != 0:
+        lines = [line for line in proc.stderr.splitlines() if line.strip()]
+        return {"error": lines[-1] if lines else f"exit status {proc.returncode}"}
+    out = proc.stdout
+    result = json.loads(out[out.index("{") : out.rindex("}") + 1])  # Blender may print around the JSON
+    return result | {"bench_wall_s": round(time.perf_counter() - t, 1)}
+
+
+def summary(d: dict) -> dict:
+    """The figures issue #9 asks for, picked out of the benchmarks' outputs (None where one failed)."""
+
+    def pick(name: str, *path: str) -> object:
+        node: object = d.get(name, {})
+        for key in path:
+            node = node.get(key) if isinstance(node, dict) else None
+        return node
+
+    pyrender = next((r for r in pick("render", "results") or [] if r.get("engine") == "pyrender"), {})
+    return {
+        "analysis_cold_s_per_audio_min": pick("analysis", "cold_s_per_audio_min"),
+        "analysis_cached_s_per_audio_min": pick("analysis", "cached_s_per_audio_min"),
+        "analysis_cold_over_cached": pick("analysis", "cold_over_cached"),
+        "generation_cached_fps": pick("generation", "sampler", "cached_fps"),
+        "generation_naive_fps": pick("generation", "sampler", "naive_fps"),
+        "generation_cached_over_naive": pick("generation", "sampler", "cached_over_naive"),
+        "three_minute_song_end_to_end_s_cold": pick("generation", "three_minute_song",
+                                                    "first_run_s_with_cold_analysis"),
+        "three_minute_song_end_to_end_s_cached_analysis": pick("generation", "three_minute_song",
+                                                               "dance_s_with_cached_analysis"),
+        "keyframes_3min_60fps_write_s": pick("keyframes", "foreach_set_write_s"),
+        "keyframes_speedup_over_keyframe_insert": pick("keyframes", "speedup_write"),
+        "pyrender_fps": pyrender.get("frames_per_s"),
+        "pyrender_to_mp4_fps": pyrender.get("video_frames_per_s"),
+        "peak_rss_mb_ten_minute_song": pick("generation", "ten_minute_song", "peak_rss_mb"),
+        "peak_rss_mib_analysis": pick("analysis", "peak_rss_mib"),
+    }
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--quick", action="store_true", help="shorter songs, no 10-minute memory run")
+    args = p.parse_args()
+    t = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="dancenet-bench-") as scratch:
+        blender_home = {"HOME": scratch, "BLENDER_USER_CONFIG": f"{scratch}/config",
+                        "BLENDER_USER_SCRIPTS": f"{scratch}/scripts", "BLENDER_USER_DATAFILES": f"{scratch}/data"}
+        details = {
+            "analysis": bench("analysis.py", *(["--synthetic-minutes", "1"] if args.quick else []),
+                              env={"DANCENET_CACHE": f"{scratch}/cache"}),
+            "generation": bench("generation.py", *(["--skip-memory"] if args.quick else [])),
+            "keyframes": bench("keyframes.py", env=blender_home),
+            "render": bench("render.py", "--engine", "pyrender"),
+        }
+    result = {"summary": summary(details), "details": details, "wall_s": round(time.perf_counter() - t, 1),
+              "cpu_count": os.cpu_count(), "load_average": [round(x, 2) for x in os.getloadavg()]}
+    print(json.dumps(result, indent=1))
+    return 1 if any("error" in v for v in details.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
