@@ -13,7 +13,7 @@ Handler = Callable[[argparse.Namespace], int]
 
 # Modules that define `add_parser(subparsers)`, which registers a subcommand and sets its `handler`
 # with `set_defaults(handler=...)`. Keep imports of heavy libraries inside the handlers.
-_COMMAND_MODULES: list[str] = ["generate_cmd", "data.build", "analyze", "render_cmd"]
+_COMMAND_MODULES: list[str] = ["generate_cmd", "data.build", "analyze", "render_cmd", "comparison"]
 
 
 def _build_parser() -> argparse.ArgumentParser:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -152,6 +152,21 @@ def load_split(path: Path = SPLIT_FILE) -> dict:
     if not path.is_file():
         raise DanceNetError(f"song split {path} is missing; it ships with the package (reinstall)")
     return json.loads(path.read_text())
+
+
+def with_mel_music(pairs: list[PairedSequence], data_dir: Path) -> list[PairedSequence]:
+    """The same pairs with the song's log-mel spectrum in place of the 15 music features (the paper's ablation)."""
+    from ..features import FPS as MUSIC_FPS
+    from ..features import analyze_music
+
+    seqs = {s.seq: s for s in read_manifest(data_dir)}
+    out = []
+    for p in pairs:
+        seq = seqs[p.seq]
+        times = seq.music_offset_s + np.arange(len(p.motion)) / MODEL_FPS
+        mel = analyze_music(seq.audio, with_mel=True).mel
+        out.append(replace(p, music=music_at_frames(mel, MUSIC_FPS, times).astype(np.float32)))
+    return out
 
 
 def build_dataset(data_dir: Path, out_dir: Path | None = None, progress: bool = True) -> list[PairedSequence]:

@@ -1,0 +1,316 @@
+"""`dancenet evaluate`: the paper's comparison (Tables 3 and 4) on the test split, from this command's own runs.
+
+1. Train every model of `model/variants.py` on the training split with the same windows and the same
+   number of steps (each in its own process, `--jobs` at a time; a finished run with the same settings is
+   reused, so a second call only measures).
+2. Each model dances to the music spans of the test-split sequences (`--takes` seeds each, from the real
+   dance's first frame, in its style), as do the shipped DanceNet weights, with and without the foot model.
+3. Every dance is cut into 10-s segments. Realism: FID of their kinetic and geometric features (AIST++) and
+   of the motion-style classifier's features (the paper's FID) against the real dances of the training
+   split; diversity: mean distance between segments in the same spaces; rhythm: Beat Align Score and the
+   paper's hit rate; feet: PFC and the sliding ratio; style consistency: the classifier's accuracy on the
+   requested style. The real test dances are measured the same way (the first row).
+
+Writes `comparison.md`, `comparison.json` and `figure_3b.png` (the music's onset envelope over the dance's
+kinematic velocity, as the paper's Figure 3b) into `--out`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DanceNetError
+from .motion import Motion
+
+SEGMENT_S = 10.0
+COLUMNS: dict[str, str] = {
+    "fid_k": "FID_k", "fid_g": "FID_g", "fid_style": "FID (style net)", "div_k": "Div_k", "div_g": "Div_g",
+    "div_style": "Div (style net)", "beat_align_score": "BAS", "rhythm_hit_rate": "Rhythm hit",
+    "pfc": "PFC", "foot_slide_ratio": "Foot slide", "jitter_m_s2": "Jitter (m/s²)",
+    "style_consistency": "Style consistency",
+}  # fmt: skip
+LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio"}
+
+
+@dataclass
+class DanceSet:
+    """One row of the table: dances with the style asked for and the beats of the music each was danced to."""
+
+    name: str
+    label: str
+    dances: list[Motion] = field(default_factory=list)
+    styles: list[str] = field(default_factory=list)
+    beats_s: list[np.ndarray] = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+
+
+def segments(positions: np.ndarray, fps: float, seconds: float = SEGMENT_S) -> list[np.ndarray]:
+    """Non-overlapping segments of `seconds` (a shorter tail is dropped)."""
+    n = int(round(seconds * fps))
+    return [positions[s : s + n] for s in range(0, len(positions) - n + 1, n)]
+
+
+def segment_features(dances: list[np.ndarray], styles: list[str], fps: float, style_net) -> dict:  # noqa: ANN001
+    """Per-segment kinetic, geometric and style-net features, and whether the net names the segment's style."""
+    from .dance_features import geometric_features, kinetic_features, smpl24_positions
+
+    kin, geo, emb, hit = [], [], [], []
+    for pos, style in zip(dances, styles, strict=True):
+        for seg in segments(pos, fps):
+            p24 = smpl24_positions(seg)
+            kin.append(kinetic_features(p24, fps))
+            geo.append(geometric_features(p24, fps))
+            emb.append(style_net.embed(seg, fps))
+            hit.append(style_net.styles[int(np.argmax(style_net.classify(seg, fps)))] == style)
+    return {"k": np.stack(kin), "g": np.stack(geo), "style": np.stack(emb), "hit": np.array(hit)}
+
+
+def measure(rows: list[DanceSet], reference: dict, fps: float, style_net) -> dict[str, dict]:  # noqa: ANN001
+    """Every column of the table for every row; FIDs and diversities in the reference set's normalisation."""
+    from .evaluation import dance_metrics
+    from .metrics import diversity, fid, physical_foot_contact
+
+    table = {}
+    for row in rows:
+        positions = [m.positions() for m in row.dances]
+        feats = segment_features(positions, row.styles, fps, style_net)
+        per_dance = [dance_metrics(m, b) | {"pfc": physical_foot_contact(p, fps)}
+                     for m, p, b in zip(row.dances, positions, row.beats_s, strict=True)]
+        r = {k: float(np.mean([d[k] for d in per_dance])) for k in per_dance[0]}
+        for key in ("k", "g", "style"):
+            r[f"fid_{key}"] = fid(reference[key], feats[key])
+            r[f"div_{key}"] = diversity(feats[key], reference=reference[key])
+        r["style_consistency"] = float(feats["hit"].mean())
+        r["segments"] = int(len(feats["hit"]))
+        table[row.name] = r | {"label": row.label, **row.info}
+    return table
+
+
+# ------------------------------------------------------------------------------------------ training
+
+
+def run_dir(runs: Path, variant: str) -> Path:
+    return runs / variant
+
+
+def trained(runs: Path, variant: str, steps: int, seed: int) -> bool:
+    """A finished run of `variant` with these settings exists (so it is measured, not retrained)."""
+    path = run_dir(runs, variant) / "dancenet.pt"
+    if not path.is_file():
+        return False
+    import torch
+
+    info = torch.load(path, map_location="cpu", weights_only=False)["info"]
+    return info.get("steps") == steps and info["settings"]["seed"] == seed and info.get("variant") == variant
+
+
+def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs: int, data: Path | None) -> None:
+    """Train the missing runs, `jobs` processes at a time (one thread each), logs next to the runs."""
+    todo = [v for v in variants if not trained(runs, v, steps, seed)]
+    for v in variants:
+        if v not in todo:
+            print(f"  {v}: trained run found in {run_dir(runs, v)}, reused")
+    env = os.environ | {"OMP_NUM_THREADS": "1"}
+    running: list[tuple[str, subprocess.Popen]] = []
+    while todo or running:
+        while todo and len(running) < jobs:
+            v = todo.pop(0)
+            out = run_dir(runs, v)
+            out.mkdir(parents=True, exist_ok=True)
+            cmd = [sys.executable, "-m", "dancenet_core.train", "--variant", v, "--steps", str(steps),
+                   "--minutes", "1e9", "--seed", str(seed), "--out", str(out), "--resume"]
+            if data:
+                cmd += ["--data", str(data)]
+            print(f"  {v}: training {steps} steps -> {out} (log {out}.log)")
+            running.append((v, subprocess.Popen(cmd, env=env, stdout=open(f"{out}.log", "a"),  # noqa: SIM115
+                                                stderr=subprocess.STDOUT)))
+        time.sleep(5)
+        for v, proc in list(running):
+            if proc.poll() is not None:
+                running.remove((v, proc))
+                if proc.returncode:
+                    raise DanceNetError(f"training {v} failed (exit {proc.returncode}); see {run_dir(runs, v)}.log")
+                print(f"  {v}: trained")
+
+
+# ------------------------------------------------------------------------------------------ dancing
+
+
+def real_rows(data: Path) -> tuple[DanceSet, list, dict, dict]:
+    """The real test dances (first row), the test pairs, and per test sequence its beats (song time)."""
+    from .data.build import build_dataset, load_split
+    from .data.dance_with_melody import read_manifest
+    from .features import analyze_music
+
+    split = load_split()
+    pairs = {p.seq: p for p in build_dataset(data, progress=False)}
+    seqs = {s.seq: s for s in read_manifest(data)}
+    beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in split["test"]}
+    return split, pairs, seqs, beats
+
+
+def dance_row(name: str, label: str, bundle, test_pairs: list, beats: dict, takes: int,  # noqa: ANN001
+              temperature: float, footfix: bool = False) -> DanceSet:
+    """`takes` dances per test sequence by the model in `bundle`, decoded to world positions."""
+    from .footfix import shipped_fixer
+    from .generate import finish_frames
+    from .model.variants import sample_normalized
+    from .representation import decode
+
+    row = DanceSet(name, label, info={"steps": bundle.info.get("steps"),
+                                      "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
+    for pair in test_pairs:
+        style = bundle.styles.index(pair.style)
+        first = bundle.normalizer.normalize(pair.motion[:1])[0]
+        for take in range(takes):
+            frames = sample_normalized(bundle.model, pair.music, style, first, temperature,
+                                       np.random.default_rng(take))
+            feats = finish_frames(bundle, frames)
+            if footfix:
+                feats = shipped_fixer()(feats)
+            row.dances.append(decode(feats, bundle.model.cfg.fps, bundle.skeleton))
+            row.styles.append(pair.style)
+            row.beats_s.append(beats[pair.seq])
+    return row
+
+
+def figure_3b(path: Path, music: np.ndarray, real: np.ndarray, generated: np.ndarray, fps: float,
+              title: str, seconds: float = 20.0) -> None:
+    """The music's onset envelope over the kinematic velocity of the real and the generated dance."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.ndimage import gaussian_filter1d
+
+    from .metrics import BAS_SMOOTH_S, kinematic_velocity, motion_beats
+
+    n = min(int(seconds * fps), len(real), len(generated))
+    t = np.arange(n) / fps
+    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    for ax, pos, name in ((axes[0], real, "real dance"), (axes[1], generated, "DanceNet")):
+        v = gaussian_filter1d(kinematic_velocity(pos[:n, :22]) * fps, BAS_SMOOTH_S * fps)
+        onset = music[:n, 14]
+        ax.plot(t, onset / max(onset.max(), 1e-9), color="tab:orange", lw=1, label="music onset strength")
+        ax.plot(t, v / max(v.max(), 1e-9), color="tab:blue", lw=1.5, label=f"{name}: kinematic velocity")
+        for b in motion_beats(pos[:n, :22], fps):
+            ax.axvline(b / fps, color="tab:blue", alpha=0.25, lw=0.8)
+        ax.set_ylabel("normalised")
+        ax.legend(loc="upper right", fontsize=8)
+    axes[0].set_title(title)
+    axes[1].set_xlabel("seconds (vertical lines: dance beats = velocity minima)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def markdown(table: dict[str, dict], seconds: float, steps: int, takes: int, segments_ref: int) -> str:
+    lines = [
+        "| model | " + " | ".join(COLUMNS.values()) + " | steps | train min |",
+        "|---|" + "---|" * (len(COLUMNS) + 2),
+    ]
+    for r in table.values():
+        cells = [f"{r[k]:.3f}" if abs(r[k]) < 10 else f"{r[k]:.1f}" for k in COLUMNS]
+        lines.append(f"| {r['label']} | " + " | ".join(cells)
+                     + f" | {r.get('steps') or '-'} | {r.get('train_minutes') or '-'} |")
+    lines += [
+        "",
+        f"Lower is better for {', '.join(COLUMNS[k] for k in sorted(LOWER_IS_BETTER))}; higher for the rest "
+        "(Jitter: closest to the real dances). FIDs and diversities are computed on 10-s segments against the "
+        f"{segments_ref} segments of the training split's real dances; {takes} take(s) per test sequence; "
+        f"every compared model trained {steps} steps on the same windows. Produced by `dancenet evaluate` in "
+        f"{seconds / 60:.1f} minutes.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    from .data.build import default_data_dir, with_mel_music
+    from .generate import DEFAULT_TEMPERATURE
+    from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from .model.variants import VARIANTS, music_features
+    from .motion_style import MotionStyleModel
+    from .representation import decode
+
+    t0 = time.perf_counter()
+    data = args.data or default_data_dir()
+    if not (data / "README.md").is_file() and not data.is_dir():
+        raise DanceNetError(f"no dataset at {data}; pass --data DIR (the shared data folder)")
+    variants = args.variants or list(VARIANTS)
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown:
+        raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
+    temperature = DEFAULT_TEMPERATURE if args.temperature is None else args.temperature
+    print(f"training {len(variants)} models ({args.steps} steps each, {args.jobs} at a time)")
+    train_variants(variants, args.runs, args.steps, args.seed, args.jobs, args.data)
+
+    print("dancing to the test songs and measuring")
+    split, pairs, _, beats = real_rows(data)
+    style_net = MotionStyleModel.load()
+    test_pairs = [pairs[s] for s in split["test"] if pairs[s].style in style_net.styles]
+    fps = 25.0
+    shipped = DanceNetBundle.load(DEFAULT_BUNDLE)
+    real = DanceSet("real", "Real dances (test split)")
+    real.dances = [decode(p.motion, fps, shipped.skeleton) for p in test_pairs]
+    real.styles = [p.style for p in test_pairs]
+    real.beats_s = [beats[p.seq] for p in test_pairs]
+    train_dances = [decode(p.motion, fps, shipped.skeleton).positions()
+                    for p in pairs.values() if p.seq in set(split["train"]) and p.style in style_net.styles]
+    ref_feats = segment_features(train_dances, ["?"] * len(train_dances), fps, style_net)
+
+    rows = [real]
+    mel_pairs = None
+    for v in variants:
+        bundle = DanceNetBundle.load(run_dir(args.runs, v) / "dancenet.pt")
+        tp = test_pairs
+        if music_features(v) == "mel":
+            mel_pairs = mel_pairs or {p.seq: p for p in with_mel_music(test_pairs, data)}
+            tp = [mel_pairs[p.seq] for p in test_pairs]
+        rows.append(dance_row(v, VARIANTS[v], bundle, tp, beats, args.takes, temperature))
+        print(f"  {v}: {len(rows[-1].dances)} dances")
+    rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
+                          args.takes, temperature))
+    rows.append(dance_row("dancenet_shipped_footfix", "DanceNet, shipped weights + foot model", shipped,
+                          test_pairs, beats, args.takes, temperature, footfix=True))
+    table = measure(rows, ref_feats, fps, style_net)
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    seconds = time.perf_counter() - t0
+    md = markdown(table, seconds, args.steps, args.takes, len(ref_feats["hit"]))
+    (args.out / "comparison.md").write_text(md)
+    (args.out / "comparison.json").write_text(json.dumps(
+        {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,
+         "seed": args.seed, "test_sequences": [p.seq for p in test_pairs], "reference_segments":
+         len(ref_feats["hit"]), "rows": table}, indent=1) + "\n")
+    # Figure 3b on the first test sequence of the last style (the waltzes, in the shipped split).
+    i = next(i for i, p in enumerate(test_pairs) if p.style == test_pairs[-1].style)
+    gen_row = next(r for r in rows if r.name == "dancenet_shipped")
+    figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.dances[i].positions(),
+              gen_row.dances[i * args.takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
+    print(md)
+    print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png ({seconds / 60:.1f} min)")
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("evaluate", help="the paper's comparison table on the test split (trains what is missing)",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    p.add_argument("--out", type=Path, default=Path("out/evaluate"))
+    p.add_argument("--runs", type=Path, default=Path("runs/compare"), help="where the compared models train")
+    p.add_argument("--steps", type=int, default=400, help="training steps of every compared model")
+    p.add_argument("--jobs", type=int, default=2, help="models trained at once (one CPU thread each)")
+    p.add_argument("--takes", type=int, default=2, help="dances per test sequence and model (seeds 0..)")
+    p.add_argument("--temperature", type=float, default=None, help="sampling temperature of the GMM models")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--variants", nargs="+", default=None, help="a subset of the models (default: all)")
+    p.set_defaults(handler=run)
