@@ -3,6 +3,7 @@
 For each Dance with Melody sequence: fit our skeleton to its markers, put its feet on the floor, encode
 the paper's representation at the model's frame rate, and sample the song's music features at the
 times of the motion frames (song time = music_offset_s + t / fps, as the data README says).
+The CMU dance clips (no music) are retargeted onto our skeleton and cached the same way.
 
 Frame rate: 25 fps, the capture's own. Resampling up to 30 or 60 fps would invent frames, make the
 dilated stack's 125-frame receptive field cover less time (5 s at 25 fps), and cost more to train.
@@ -13,16 +14,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
+from ..bvh import read_bvh
 from ..errors import DanceNetError
 from ..motion import Motion
 from ..representation import encode
+from ..retarget import CMU, Retargeted, SourcePose, fit_targets, retarget, source_pose
 from ..skeleton import TOE_ENDS, Skeleton
+from .cmu_dance import Clip, read_cmu_manifest
 from .dance_with_melody import P, Sequence, load_positions, read_manifest
 from .fit import fit_errors, fit_sequence, performer_skeleton, stretch_errors
 
@@ -125,6 +130,26 @@ def fit_report(motion: Motion, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return fit_errors(placed, pos, targets), stretch_errors(placed, pos, targets, along_chain=False)
 
 
+def fitted_clip(clip: Clip, out_dir: Path, fit_steps: int = 200) -> tuple[Motion, np.ndarray, SourcePose]:
+    """A CMU clip retargeted onto our skeleton (feet on the floor, model rate; cached), its fit errors [T, K]
+    on the mapped joints, and the source pose it was fitted to (metres, Y up, model rate)."""
+    motion_path = out_dir / f"CMU_{clip.clip}.motion.npz"
+    data = read_bvh(clip.bvh)
+    if motion_path.is_file():
+        motion = Motion.load(motion_path)
+        source = source_pose(data, CMU, MODEL_FPS, str(clip.bvh))
+        targets = fit_targets(source)
+    else:
+        fit = retarget(data, CMU, MODEL_FPS, steps=fit_steps, path=str(clip.bvh))
+        motion, source, targets = fit.motion, fit.source, fit.targets
+        motion.root_positions[:, 1] -= floor_offset(motion)
+        motion.save(motion_path)
+    # Measured where the source is: undo the floor shift (a constant height) first.
+    shift = np.median(source.positions[:, 0, 1] - motion.root_positions[:, 1])
+    placed = Motion(motion.rotations, motion.root_positions + [0.0, shift, 0.0], motion.fps, motion.skeleton)
+    return motion, Retargeted(placed, source, targets).errors(), source
+
+
 def build_sequence(seq: Sequence, out_dir: Path) -> PairedSequence:
     from ..features import FPS as MUSIC_FPS
     from ..features import analyze_music
@@ -203,7 +228,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--out", type=Path, default=None, help="cache folder (default: ~/.cache/dancenet)")
     b.set_defaults(handler=_cmd_build)
     s = dsub.add_parser("show", help="draw a source frame and our fitted skeleton side by side")
-    s.add_argument("seq", help="sequence id, e.g. DANCE_W_1")
+    s.add_argument("seq", help="sequence id, e.g. DANCE_W_1, or CMU clip, e.g. 60_01")
     s.add_argument("--frame", type=int, default=None, help="frame index (default: the middle)")
     s.add_argument("--data", type=Path, default=None)
     s.add_argument("--out", type=Path, default=Path("frame.png"))
@@ -230,7 +255,31 @@ def _cmd_build(args: argparse.Namespace) -> int:
     print(f"fit error on the matched joints over {len(f)} sequences: mean {f[:, 0].mean():.2f} cm "
           f"(worst {f[:, 0].max():.2f}), p95 {f[:, 1].mean():.2f} cm (worst {f[:, 1].max():.2f}); the markers' "
           f"own-bone stretch is {f[:, 2].mean():.2f} cm, {100 * f[:, 2].mean() / f[:, 0].mean():.0f}% of it")
+    _build_cmu(data_dir, out_dir)
     return 0
+
+
+def _build_cmu(data_dir: Path, out_dir: Path) -> None:
+    """Retarget every CMU clip once (cached) and print the fit error per clip and over all frames."""
+    from tqdm import tqdm
+
+    clips = read_cmu_manifest(data_dir)
+    if not clips:
+        print(f"no CMU clips under {data_dir} (cmu_dance/manifest.csv): skipped")
+        return
+    out_dir.mkdir(parents=True, exist_ok=True)
+    errs, seconds, start = [], 0.0, time.perf_counter()
+    for clip in tqdm(clips, desc="CMU retarget", unit="clip"):
+        motion, err, _ = fitted_clip(clip, out_dir)
+        errs.append(err)
+        seconds += motion.duration
+        tqdm.write(f"  CMU {clip.clip} ({clip.description}): mean {err.mean() * 100:.2f} cm, "
+                   f"p95 {np.percentile(err, 95) * 100:.2f} cm, {motion.duration:.0f} s")
+    every = np.concatenate(errs) * 100
+    worst = int(np.argmax([np.percentile(e, 95) for e in errs]))
+    print(f"CMU retarget error on the mapped joints over {len(clips)} clips ({seconds / 60:.1f} min): "
+          f"mean {every.mean():.2f} cm, p95 {np.percentile(every, 95):.2f} cm; worst clip {clips[worst].clip} "
+          f"(p95 {np.percentile(errs[worst], 95) * 100:.2f} cm); {time.perf_counter() - start:.0f} s")
 
 
 def _cmd_show(args: argparse.Namespace) -> int:

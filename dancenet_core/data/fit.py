@@ -35,6 +35,7 @@ class Target:
     offset: tuple[float, float, float]
     points: tuple[int, ...]
     weight: float = 1.0
+    matched: bool = True  # a joint, counted in the fit error; False for points that only set a turn
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
@@ -120,8 +121,8 @@ def performer_skeleton(pos: np.ndarray) -> tuple[Skeleton, list[Target]]:
     targets = [
         Target("pelvis", J["pelvis"], (0, 0, 0), (P["pelvis"],)),
         Target("head", J["head"], tuple(head_site), (P["head_l"], P["head_r"])),
-        Target("head_l", J["head"], (half_head, *head_site[1:]), (P["head_l"],), 0.3),
-        Target("head_r", J["head"], (-half_head, *head_site[1:]), (P["head_r"],), 0.3),
+        Target("head_l", J["head"], (half_head, *head_site[1:]), (P["head_l"],), 0.3, matched=False),
+        Target("head_r", J["head"], (-half_head, *head_site[1:]), (P["head_r"],), 0.3, matched=False),
     ]
     for side, s in (("left", "l"), ("right", "r")):
         targets += [
@@ -205,54 +206,69 @@ def fit_sequence(
 ) -> tuple[Motion, list[Target]]:
     """Fit our skeleton to marker positions [T, 23, 3]; returns the motion and the targets used."""
     skeleton, targets = performer_skeleton(pos)
-    rot0 = initial_pose(skeleton, pos)
+    # Joints no marker constrains (their twist would wander): the ball of the foot and the wrists.
+    frozen = [J["left_foot"], J["right_foot"], J["left_wrist"], J["right_wrist"]]
+    motion = optimise_rotations(skeleton, targets, target_positions(pos, targets), initial_pose(skeleton, pos),
+                                pos[:, P["pelvis"]], fps, frozen, steps, smooth_weight, progress)
+    return motion, targets
+
+
+def optimise_rotations(
+    skeleton: Skeleton,
+    targets: list[Target],
+    want: np.ndarray,
+    rot0: np.ndarray,
+    root0: np.ndarray,
+    fps: float,
+    frozen: list[int],
+    steps: int = 200,
+    smooth_weight: float = 0.5,
+    progress: bool = False,
+) -> Motion:
+    """Body rotations and root path that put the targets on `want` [T, K, 3], from the start `rot0` [T, 55, 3].
+
+    All frames at once: target error + joint accelerations (non-causal, so no lag) + anatomical priors.
+    `frozen` joints keep their start rotation; joints past the body (fingers, jaw, eyes) keep theirs too.
+    """
     body = Skeleton(skeleton.offsets[:BODY_JOINTS], skeleton.names[:BODY_JOINTS],
                     skeleton.parents[:BODY_JOINTS], ())
     dtype = torch.float32  # metres: float32 is ample, and twice as fast as float64
-    want = torch.tensor(target_positions(pos, targets), dtype=dtype)
+    want_t = torch.tensor(want, dtype=dtype)
     weights = torch.tensor([t.weight for t in targets], dtype=dtype)
     t_joint = torch.tensor([t.joint for t in targets])
     t_off = torch.tensor([t.offset for t in targets], dtype=dtype)
     rot = torch.tensor(rot0[:, :BODY_JOINTS], dtype=dtype, requires_grad=True)
-    root = torch.tensor(pos[:, P["pelvis"]], dtype=dtype, requires_grad=True)
+    root = torch.tensor(root0, dtype=dtype, requires_grad=True)
     opt = torch.optim.Adam([rot, root], lr=0.01)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps)
     dt2 = (1.0 / fps) ** 2
     spine = [J["spine1"], J["spine2"], J["spine3"]]
     knees = [J["left_knee"], J["right_knee"]]
     elbows = [J["left_elbow"], J["right_elbow"]]
-    # Joints no marker constrains (their twist would wander): the ball of the foot and the wrists.
-    frozen = [J["left_foot"], J["right_foot"], J["left_wrist"], J["right_wrist"]]
     for step in range(steps):
         opt.zero_grad()
         wp, wr, _ = fk_torch(body, rot, root)
         got = wp[:, t_joint] + (wr[:, t_joint] @ t_off.unsqueeze(-1)).squeeze(-1)
-        err = ((got - want) ** 2).sum(-1)
+        err = ((got - want_t) ** 2).sum(-1)
         loss = (err * weights).mean() / weights.mean()
         acc = (wp[2:] - 2 * wp[1:-1] + wp[:-2]) / dt2  # m/s^2
         loss = loss + smooth_weight * 1e-6 * (acc**2).sum(-1).mean()
         # Knees hinge about their local x axis, elbows about y; the three spine joints share the bend;
-        # joint rotations change smoothly (this fixes twists the markers leave open).
+        # joint rotations change smoothly (this fixes twists the targets leave open).
         loss = loss + 1e-3 * (rot[:, knees, 1:] ** 2).sum(-1).mean()
         loss = loss + 1e-3 * (rot[:, elbows][..., [0, 2]] ** 2).sum(-1).mean()
         loss = loss + 1e-3 * ((rot[1:, 1:] - rot[:-1, 1:]) ** 2).sum(-1).mean()
         loss = loss + 1e-3 * ((rot[:, spine] - rot[:, spine].mean(1, keepdim=True)) ** 2).sum(-1).mean()
         loss.backward()
-        rot.grad[:, frozen] = 0.0
+        rot.grad[:, frozen] = 0.0  # Adam leaves a parameter whose gradient is always zero where it started
         opt.step()
         sched.step()
         if progress and step % 50 == 0:
             print(f"  step {step}: rms {err.mean().sqrt().item() * 100:.2f} cm")
     rotations = rot0.copy()
     rotations[:, :BODY_JOINTS] = rot.detach().numpy()
-    rotations[:, frozen] = 0.0
-    rotations[:, BODY_JOINTS:] = 0.0
-    return Motion(rotations, root.detach().numpy(), fps, skeleton), targets
+    return Motion(rotations, root.detach().numpy(), fps, skeleton)
 
-
-# Markers on the sides of the head: they set the head's turn but are not joints, so the reported fit
-# error (matched joints) leaves them out.
-ORIENTATION_ONLY = ("head_l", "head_r")
 
 # Each joint target's parent along the body's chains, for the stretch analysis.
 _CHAIN_PARENT = {"head": "pelvis"} | {
@@ -264,7 +280,8 @@ _CHAIN_PARENT = {"head": "pelvis"} | {
 
 
 def joint_columns(targets: list[Target]) -> list[int]:
-    return [k for k, t in enumerate(targets) if t.name not in ORIENTATION_ONLY]
+    """The matched joints' columns: points that only set a turn (the head markers) are not joints."""
+    return [k for k, t in enumerate(targets) if t.matched]
 
 
 def fit_errors(motion: Motion, pos: np.ndarray, targets: list[Target]) -> np.ndarray:
