@@ -104,9 +104,12 @@ class Applied:
 
 
 def strips_of(scene: bpy.types.Scene) -> bpy.types.bpy_prop_collection:
-    """Top-level sequencer strips: `strips` since 4.4 (and only that in 5.0), `sequences` before."""
+    """Top-level sequencer strips: `strips` since 4.4 (and only that in 5.0), `sequences` before.
+
+    Tested with hasattr, not truthiness: an empty `strips` collection is falsy.
+    """
     editor = scene.sequence_editor
-    return getattr(editor, "strips", None) or editor.sequences
+    return editor.strips if hasattr(editor, "strips") else editor.sequences
 
 
 def check_song(path: str | Path) -> Path:

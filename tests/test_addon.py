@@ -8,6 +8,7 @@ directory; tests that need a fresh Blender run in a subprocess.
 from __future__ import annotations
 
 import atexit
+import importlib.util
 import math
 import os
 import shutil
@@ -346,6 +347,12 @@ def test_takes_become_separate_actions(scene, addon, song):
     assert bpy.data.objects["DanceNet Dancer"].animation_data.action.name.endswith("take 1")
 
 
+def test_an_empty_sequencer_is_read_through_strips(scene, addon):
+    """Blender 5.0 has only `strips`, and an empty collection is falsy: it must not fall back to `sequences`."""
+    scene.sequence_editor_create()
+    assert addon.pipeline.strips_of(scene).path_from_id() == "sequence_editor.strips"
+
+
 def test_active_sound_strip_is_the_music_source(scene, addon, song):
     scene.sequence_editor_create()
     strip = scene.sequence_editor.strips.new_sound("song", str(song), 2, 30)
@@ -458,48 +465,36 @@ def test_generator_errors_are_reported(scene, addon, song, monkeypatch):
     assert snapshot(scene) == before
 
 
-class LayoutRecorder:
-    """Stands in for UILayout (none exists without a window): checks every prop and operator drawn."""
-
-    def __init__(self) -> None:
-        self.drawn: list[str] = []
-        self.enabled, self.scale_y = True, 1.0
-
-    def _child(self, *_args, **_kwargs) -> LayoutRecorder:
-        return self
-
-    row = column = box = _child
-
-    def prop(self, data, name: str, **_kwargs) -> None:
-        assert name in data.bl_rna.properties, name
-        self.drawn.append(name)
-
-    def operator(self, idname: str, **_kwargs) -> None:
-        module, name = idname.split(".")
-        assert hasattr(bpy.types, f"{module.upper()}_OT_{name}"), idname
-        self.drawn.append(idname)
-
-    def label(self, text: str = "", **_kwargs) -> None:
-        self.drawn.append(f"label:{text}")
-
-    def progress(self, factor: float, text: str = "", **_kwargs) -> None:
-        assert 0.0 <= factor <= 1.0
-        self.drawn.append(f"progress:{text}")
+def panel_screenshot():
+    """scripts/panel_screenshot.py: its UILayout recorder runs the real draw(), its painter makes docs/panel.png."""
+    if "panel_screenshot" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("panel_screenshot", ROOT / "scripts" / "panel_screenshot.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # dataclasses look their module up while the class is built
+        spec.loader.exec_module(module)
+    return sys.modules["panel_screenshot"]
 
 
 @pytest.mark.parametrize("target", ["NEW", "EXISTING"])
 def test_panel_draws_every_setting(scene, addon, song, target):
+    shot = panel_screenshot()
     generate(scene, song)  # a rig with a dance, an analysis to show
     scene.dancenet.target = target
     for panel in addon.panels.CLASSES:
-        layout = LayoutRecorder()
-        panel.draw(SimpleNamespace(layout=layout), bpy.context)
-        assert {"music_source", "music_file", "style", "seed", "temperature", "takes", "footfix"} <= set(
-            layout.drawn
-        )
-        assert "dancenet.generate" in layout.drawn and "dancenet.export_fbx" in layout.drawn
-        assert "progress:Hiphop 70%" in layout.drawn
-        assert ("bone_map" in layout.drawn) == (target == "EXISTING")
+        root = shot.record_panel(bpy.context, panel)
+        shown = {w.text: w for w in shot.walk(root)}
+        assert {
+            "File", "Sound Strip", "Style", "Seed", "Temperature", "Takes", "Foot Clean-up", "Beat Markers",
+            "New Rig", "Existing Armature", "Generate Dance", "Export FBX", "Export BVH",
+        } <= set(shown)  # fmt: skip
+        assert [w.value for w in shot.walk(root) if w.kind == "text"] == [str(song)]
+        assert shown["Style"].value == "Auto (Hiphop)" and shown["Hiphop 70%"].kind == "progress"
+        assert shown["Temperature"].value == "0.10" and shown["Foot Clean-up"].selected
+        assert shown["Generate Dance"].enabled and shown["Generate Dance"].kind == "operator"
+        assert shown["Existing Armature"].selected == (target == "EXISTING")
+        assert ("Bone Map" in shown) == (target == "EXISTING") == ("Mannequin" not in shown)
+    image = shot.paint(root)
+    assert image.width == shot.WIDTH + shot.TAB_WIDTH and image.height > 20 * shot.UNIT
 
 
 # --- exports ---------------------------------------------------------------------------------------
