@@ -83,7 +83,8 @@ def test_song_style_is_mean_of_window_probabilities() -> None:
 
 def test_style_names_come_from_metadata(tmp_path: Path) -> None:
     for arch in S.ARCHS:
-        model = S.StyleModel(S.build_net(arch, 2), arch, ["polka", "tango"], {"hidden": 64, "dropout": 0.2})
+        config = {"hidden": 16, "dropout": 0.2}
+        model = S.StyleModel(S.build_net(arch, 2, **config), arch, ["polka", "tango"], config)
         model.save(tmp_path / f"{arch}.pt")
         loaded = S.StyleModel.load(tmp_path / f"{arch}.pt")
         assert loaded.styles == ("polka", "tango") and loaded.arch == arch
@@ -126,12 +127,15 @@ def test_training_learns_a_separable_toy_problem() -> None:
         S.Song(f"s{i}", style, rng.random((330, 15), dtype=np.float32) * 0.2 + (0.8 if style == "b" else 0.0))
         for i, style in enumerate(["a", "b"] * 3)
     ]
-    model = S.train_model("conv", songs, ["a", "b"], epochs=10, lr=3e-3, batch=8, seed=0, log=lambda _m: None)
+    model = S.train_model(
+        "conv", songs, ["a", "b"], steps=40, lr=3e-3, batch=8, seed=0, log=lambda _m: None, val=songs[:2], eval_every=20
+    )
+    assert [h["step"] for h in model.meta["validation"]] == [20, 40] and not model.net.training
     metrics = S.evaluate(model, songs)
     assert metrics["song_accuracy"] == 1.0 and metrics["songs"] == 6
     assert np.array(metrics["confusion_song"]).sum() == 6
     metrics.update(train={"window_accuracy": 1.0}, train_seconds=1)
-    model.meta["training"] = {"epochs": 10, "lr": 3e-3, "batch": 8, "seed": 0, "metrics": metrics}
+    model.meta["training"] = {"steps": 40, "lr": 3e-3, "batch": 8, "seed": 0, "metrics": metrics}
     rows = [{"seq": s.seq, "style": s.style, "song_s": "33"} for s in songs]
     split = {
         "seed": 0,
@@ -144,6 +148,53 @@ def test_training_learns_a_separable_toy_problem() -> None:
     assert "| Ours (Temporal Conv + Bi-LSTM) | 100.0% | 100.0% | 100.0% | 100.0% | 100.0% | 1 s |" in card
     assert "| Always the most common style | 50.0% | 50.0% | 50.0% | 50.0% | - | - |" in card
     assert "ours gets 3 of 3 right" in card and "- s5 (b): a reason" in card
+
+
+def _clicks(num_frames: int, period: int, bar: int) -> np.ndarray:
+    """Features with a beat every `period` frames, a downbeat every `bar` beats (activations peaking over three
+    frames, as madmom's do at 10 fps) and some chroma."""
+    x = np.zeros((num_frames, 15), np.float32)
+    for col, step in ((12, period), (13, period * bar)):
+        x[::step, col] = 1.0
+        x[1::step, col] = x[step - 1 :: step, col] = 0.5
+    x[:, :12] = np.random.default_rng(1).random((num_frames, 12))
+    return x
+
+
+def _peaks(column: np.ndarray) -> int:
+    """Local maxima above a quarter of the full height: beats in an (interpolated, scaled) activation."""
+    c = np.pad(column, 1)
+    return int(np.sum((c[1:-1] > 0.25) & (c[1:-1] >= c[:-2]) & (c[1:-1] > c[2:])))
+
+
+def test_transposing_by_an_octave_is_the_identity_and_leaves_rhythm_alone() -> None:
+    x = _clicks(100, 5, 3)
+    np.testing.assert_array_equal(S.transpose_chroma(x, 12), x)
+    y = S.transpose_chroma(x, 2)
+    np.testing.assert_array_equal(y[:, 2], x[:, 0])
+    np.testing.assert_array_equal(y[:, 12:], x[:, 12:])
+    np.testing.assert_array_equal(S.transpose_chroma(y, 10), x)
+
+
+@pytest.mark.parametrize("rate", [0.85, 1.15])
+def test_tempo_change_scales_beats_per_second_and_keeps_the_metre(rate: float) -> None:
+    x = _clicks(601, 10, 3)  # 1 beat per second at 10 fps, waltz bars
+    y = S.change_tempo(x, rate)
+    assert len(y) == round(601 / rate)
+    seconds = len(y) / 10
+    assert _peaks(y[:, 12]) / seconds == pytest.approx(_peaks(x[:, 12]) / 60.1 * rate, rel=0.03)
+    assert _peaks(y[:, 12]) / _peaks(y[:, 13]) == pytest.approx(3, rel=0.05)
+
+
+def test_augmented_windows_keep_the_beat_and_metre() -> None:
+    rng = np.random.default_rng(0)
+    song = _clicks(900, 10, 3)
+    for _ in range(20):
+        w = S.augment_window(song, 300, rng)
+        assert w.shape == (300, 15) and w.dtype == np.float32
+        beats, downbeats = _peaks(w[:, 12]), _peaks(w[:, 13])
+        assert 30 * (1 - S.AUG_TEMPO) - 2 <= beats <= 30 * (1 + S.AUG_TEMPO) + 2
+        assert beats / max(1, downbeats) == pytest.approx(3, abs=0.5)
 
 
 # --------------------------------------------------------------------------- shipped weights and real data
