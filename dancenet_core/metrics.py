@@ -10,8 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import argrelextrema
+from scipy.spatial.distance import pdist
 
 BAS_SIGMA_S = 3 / 60
 BAS_SMOOTH_S = 5 / 60
@@ -23,6 +25,14 @@ HIT_WINDOW_S = 0.25
 # the toe alone decides here.
 CONTACT_TOE_M = 0.05
 SLIDE_SPEED_MPS = 0.25
+
+# EDGE's PFC measures foot speed in metres per frame at 30 fps; we turn m/s into that unit at any rate.
+PFC_FPS = 30.0
+PFC_SCALE = 1e4
+PFC_FEET = (7, 10, 8, 11)  # left ankle, left foot, right ankle, right foot (SMPL and SMPL-X order)
+PFC_STILL_ACC = 1e-6  # m/s^2: a root never accelerating more than this is steady (rounding, not motion)
+FID_EPS = 1e-5  # Bailando's diagonal offset when the covariance product is singular
+NORM_EPS = 1e-10  # Bailando's guard on the real set's standard deviation
 
 
 def kinematic_velocity(positions: np.ndarray) -> np.ndarray:
@@ -101,3 +111,65 @@ def longest_freeze_s(positions: np.ndarray, fps: float, speed_mps: float = 0.05)
 def root_extent_m(root: np.ndarray) -> float:
     """Largest horizontal distance of the root from where it started."""
     return float(np.linalg.norm(root[:, [0, 2]] - root[0, [0, 2]], axis=-1).max())
+
+
+def frechet_distance(real: np.ndarray, gen: np.ndarray) -> float:
+    """Frechet distance between Gaussians fitted to two sets of feature rows [N, F], as Bailando's calc_fid:
+    |mu_r - mu_g|^2 + tr(S_r + S_g - 2 (S_r S_g)^(1/2)). A singular product (fewer samples than features)
+    is retried with FID_EPS on the diagonals; an imaginary part from rounding is dropped."""
+    real, gen = np.atleast_2d(np.asarray(real, np.float64)), np.atleast_2d(np.asarray(gen, np.float64))
+    if real.shape[1] != gen.shape[1] or min(len(real), len(gen)) < 2:
+        raise ValueError(f"need two sets of >= 2 rows with the same width, got {real.shape} and {gen.shape}")
+    mu_r, mu_g = real.mean(axis=0), gen.mean(axis=0)
+    s_r, s_g = np.atleast_2d(np.cov(real, rowvar=False)), np.atleast_2d(np.cov(gen, rowvar=False))
+    covmean, _ = linalg.sqrtm(s_r @ s_g, disp=False)
+    if not np.isfinite(covmean).all():
+        offset = np.eye(len(s_r)) * FID_EPS
+        covmean = linalg.sqrtm((s_r + offset) @ (s_g + offset))
+    diff = mu_r - mu_g
+    return float(diff @ diff + np.trace(s_r) + np.trace(s_g) - 2 * np.trace(covmean.real))
+
+
+def normalize_by(reference: np.ndarray, feats: np.ndarray) -> np.ndarray:
+    """feats in units of the reference set's per-feature mean and standard deviation (Bailando's normalize)."""
+    reference = np.asarray(reference, np.float64)
+    return (np.asarray(feats, np.float64) - reference.mean(axis=0)) / (reference.std(axis=0) + NORM_EPS)
+
+
+def fid(real_feats: np.ndarray, gen_feats: np.ndarray) -> float:
+    """FID_k / FID_g as Bailando's metrics_new.py: both sets normalised by the real set's mean and std,
+    then the Frechet distance. A feature constant over the real set (std 0) makes any generated deviation
+    in it huge: that is Bailando's convention, kept so numbers compare."""
+    return frechet_distance(normalize_by(real_feats, real_feats), normalize_by(real_feats, gen_feats))
+
+
+def diversity(feats: np.ndarray, reference: np.ndarray | None = None) -> float:
+    """Div_k / Div_g: mean L2 distance over all pairs of rows [N, F] (Bailando's calculate_avg_distance),
+    after normalising by the reference (real) set's mean and std when one is given, as Bailando does."""
+    x = np.asarray(feats, np.float64) if reference is None else normalize_by(reference, feats)
+    if x.ndim != 2 or len(x) < 2:
+        raise ValueError(f"diversity needs [N >= 2, F] features, got {x.shape}")
+    return float(pdist(x).mean())
+
+
+def physical_foot_contact(positions: np.ndarray, fps: float) -> float:
+    """EDGE's PFC (eval_pfc.py) on world positions [T, J >= 12, 3], Y up; lower is better.
+
+    Per frame: the root's acceleration (its upward part clamped at 0: rising needs a push from the floor,
+    falling does not), divided by its maximum over the dance, times min(ankle, foot) horizontal speed of the
+    left and of the right foot (EDGE's unit: metres per 30-fps frame); mean over frames, x 1e4. A dance
+    whose root never accelerates scores 0 (EDGE would divide by 0).
+    """
+    p = np.asarray(positions, np.float64)
+    if p.ndim != 3 or p.shape[1] < 12 or p.shape[2] != 3 or len(p) < 3:
+        raise ValueError(f"expected [T >= 3, J >= 12, 3] positions, got {p.shape}")
+    root_a = np.diff(p[:, 0], n=2, axis=0) * fps * fps  # [T-2, 3]
+    root_a[:, 1] = np.maximum(root_a[:, 1], 0.0)
+    root_a = np.linalg.norm(root_a, axis=1)
+    peak = root_a.max()
+    if peak <= PFC_STILL_ACC:
+        return 0.0
+    feet = p[:, list(PFC_FEET)][:, :, [0, 2]]
+    foot_v = np.linalg.norm(feet[2:] - feet[1:-1], axis=-1) * fps / PFC_FPS  # [T-2, 4]
+    left, right = np.minimum(foot_v[:, 0], foot_v[:, 1]), np.minimum(foot_v[:, 2], foot_v[:, 3])
+    return float((left * right * root_a / peak).mean() * PFC_SCALE)
