@@ -87,8 +87,11 @@ def measure(rows: list[DanceSet], reference: dict, fps: float, style_net) -> dic
                      for m, p, b in zip(row.dances, positions, row.beats_s, strict=True)]
         r = {k: float(np.mean([d[k] for d in per_dance])) for k in per_dance[0]}
         for key in ("k", "g", "style"):
-            r[f"fid_{key}"] = fid(reference[key], feats[key])
-            r[f"div_{key}"] = diversity(feats[key], reference=reference[key])
+            # A feature constant over the reference (some geometric relations never hold in ballroom) has
+            # std 0 and would blow Bailando's normalisation up to ~1e20: such features are left out.
+            keep = reference[key].std(axis=0) > 1e-6
+            r[f"fid_{key}"] = fid(reference[key][:, keep], feats[key][:, keep])
+            r[f"div_{key}"] = diversity(feats[key][:, keep], reference=reference[key][:, keep])
         r["style_consistency"] = float(feats["hit"].mean())
         r["segments"] = int(len(feats["hit"]))
         table[row.name] = r | {"label": row.label, **row.info}

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from dancenet_core.comparison import segments
+from dancenet_core.comparison import DanceSet, measure, segment_features, segments
 from dancenet_core.model.variants import VARIANTS, build_model, sample_normalized
+from dancenet_core.motion import Motion
 from dancenet_core.representation import FeatureLayout
 
 LAYOUT = FeatureLayout(55, 5)
@@ -57,3 +58,38 @@ def test_segments_are_whole_and_do_not_overlap() -> None:
     segs = segments(pos, fps=25.0, seconds=4.0)
     assert [len(s) for s in segs] == [100, 100]  # the 60-frame tail is dropped
     np.testing.assert_array_equal(segs[1][0], pos[100])
+
+
+class _OneStyleNet:
+    """A style classifier stand-in that names every segment 'waltz' and embeds it by its mean height."""
+
+    styles = ["rumba", "waltz"]
+
+    def embed(self, seg: np.ndarray, fps: float) -> np.ndarray:
+        return np.array([seg[..., 1].mean(), seg[..., 0].std()])
+
+    def classify(self, seg: np.ndarray, fps: float) -> np.ndarray:
+        return np.array([0.1, 0.9])
+
+
+def _dance(seed: int, frames: int = 500) -> Motion:
+    from dancenet_core.skeleton import DEFAULT_SKELETON
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None, None] / 25.0
+    rot = 0.3 * np.sin(2 * np.pi * rng.uniform(0.5, 2, (1, 55, 3)) * t + rng.uniform(0, 6, (1, 55, 3)))
+    root = np.stack([np.sin(t[:, 0, 0]), 0.9 + 0.02 * np.cos(3 * t[:, 0, 0]), 0.1 * t[:, 0, 0]], -1)
+    return Motion(rot, root, 25.0, DEFAULT_SKELETON)
+
+
+def test_identical_sets_score_fid_zero_and_style_consistency_counts_named_segments() -> None:
+    dances = [_dance(s) for s in range(4)]
+    row = DanceSet("x", "x", dances, ["waltz", "waltz", "rumba", "waltz"], [np.arange(0, 20, 0.5)] * 4)
+    net = _OneStyleNet()
+    reference = segment_features([m.positions() for m in dances], row.styles, 25.0, net)
+    r = measure([row], reference, 25.0, net)["x"]
+    assert r["segments"] == 8  # two whole 10-s segments per 20-s dance
+    assert r["fid_k"] == pytest.approx(0, abs=1e-4) and r["fid_g"] == pytest.approx(0, abs=1e-4)
+    assert r["fid_style"] == pytest.approx(0, abs=1e-4)
+    assert r["style_consistency"] == pytest.approx(6 / 8)  # the rumba's two segments are called waltz
+    assert r["div_k"] > 0
