@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    style = model.classify(analysis.features, analysis.fps)
+    style = model.classify(analysis)
     elapsed = time.time() - t0
     probs = ", ".join(
         f"{s} {p:.2f}" for s, p in sorted(zip(style.styles, style.probabilities, strict=True), key=lambda sp: -sp[1])

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -19,6 +20,9 @@ from .data.build import music_at_frames
 from .errors import DanceNetError
 from .motion import Motion
 from .representation import FeatureLayout, decode
+
+if TYPE_CHECKING:
+    from .features import MusicAnalysis
 
 # Sampling temperature (scales the mixture's sigma), as the authors sample. At 0 the dance is the mixture's
 # mean and freezes within a minute; above ~0.3 per-frame noise shows as jitter.
@@ -65,14 +69,15 @@ def available_styles(weights: str | None = None) -> list[str]:
 
 
 def choose_style(
-    requested: str, features: np.ndarray, styles: list[str]
+    requested: str, analysis: MusicAnalysis, styles: list[str]
 ) -> tuple[str, dict[str, float]]:
-    """The user's style, or the classifier's most probable style among those the dance model knows."""
+    """The user's style, or the classifier's most probable style among those the dance model knows (it reads
+    the tracked beats as well as the features, hence the whole analysis)."""
     if requested != "auto":
         if requested not in styles:
             raise DanceNetError(f"unknown style '{requested}'; choose auto or one of: {', '.join(styles)}")
         return requested, {}
-    result = _style_model().classify(features)
+    result = _style_model().classify(analysis)
     probs = {s: float(p) for s, p in zip(result.styles, result.probabilities, strict=True)}
     known = {s: p for s, p in probs.items() if s in styles}
     if not known:
@@ -138,7 +143,7 @@ def generate_dance(
     t = time.perf_counter()
     bundle = load_bundle(weights)
     cfg = bundle.model.cfg
-    chosen, probs = choose_style(style, analysis.features, bundle.styles)
+    chosen, probs = choose_style(style, analysis, bundle.styles)
     timings["style_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
