@@ -37,7 +37,7 @@ def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
     pairs = [_pair(0, "rumba"), _pair(1, "rumba"), _pair(2, "waltz"), _pair(3, "waltz"), _pair(4, "waltz")]
     split = {"train": ["SEQ_0", "SEQ_1", "SEQ_2", "SEQ_3"], "test": ["SEQ_4"]}
     args = argparse.Namespace(data=None, out=out, minutes=5.0, steps=4, batch=2, window=100, lr=4e-4, seed=0,
-                              log_every=2, checkpoint_every=2, resume=False)
+                              log_every=2, checkpoint_every=2, resume=False, variant="dancenet")
     path = train(args, pairs, split)
     log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     assert log[-1]["done"] and np.isfinite(log[-1]["test_loss"])
