@@ -28,7 +28,6 @@ Train: `python -m dancenet_core.motion_style --train` (writes weights/motion_sty
 from __future__ import annotations
 
 import argparse
-import pickle
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -39,6 +38,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .checkpoint import read_checkpoint
 from .errors import DanceNetError
 from .skeleton import DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, PARENTS
 
@@ -159,16 +159,8 @@ class MotionStyleModel:
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_WEIGHTS) -> MotionStyleModel:
-        path = Path(path)
-        if not path.is_file():
-            raise DanceNetError(f"motion style model not found: {path}; train one with "
-                                "`python -m dancenet_core.motion_style --train`")  # fmt: skip
-        try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        except (RuntimeError, OSError, EOFError, pickle.UnpicklingError) as e:
-            raise DanceNetError(f"cannot read the motion style model {path}: {e}".splitlines()[0]) from e
-        if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
-            raise DanceNetError(f"{path} is not a dancenet motion style model ({CHECKPOINT_FORMAT})")
+        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT, "motion style model",
+                               "python -m dancenet_core.motion_style --train")
         net = MotionStyleNet(len(ckpt["styles"]), **ckpt["config"])
         net.load_state_dict(ckpt["state_dict"])
         return cls(net, ckpt["styles"], ckpt["config"], ckpt["meta"])

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import pickle
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -33,6 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .checkpoint import read_checkpoint
 from .errors import DanceNetError
 from .features import (
     BEAT_COL,
@@ -207,18 +207,7 @@ class StyleModel:
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_WEIGHTS) -> StyleModel:
-        path = Path(path)
-        if not path.is_file():
-            raise DanceNetError(
-                f"style model not found: {path}; reinstall dancenet or train one "
-                "with `python -m dancenet_core.style train`"
-            )
-        try:
-            ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        except (RuntimeError, OSError, EOFError, pickle.UnpicklingError) as e:
-            raise DanceNetError(f"cannot read the style model {path}: {e}".splitlines()[0]) from e
-        if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
-            raise DanceNetError(f"{path} is not a dancenet style model ({CHECKPOINT_FORMAT})")
+        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT, "style model", "python -m dancenet_core.style train")
         net = build_net(ckpt["arch"], len(ckpt["styles"]), **ckpt["config"])
         net.load_state_dict(ckpt["state_dict"])
         return cls(net, ckpt["arch"], ckpt["styles"], ckpt["config"], ckpt["meta"])
