@@ -38,6 +38,7 @@ def dance_metrics(motion: Motion, beats_s: np.ndarray) -> dict[str, float]:
         "foot_slide_ratio": slide.slide_ratio,
         "foot_slide_m_per_contact_frame": slide.mean_slide_m,
         "contact_ratio": slide.contact_ratio,
+        "lowest_toe_m": float(ends[:, list(TOE_ENDS), 1].min()),
         "jitter_m_s2": jitter(pos[:, :22], motion.fps),
         "longest_freeze_s": longest_freeze_s(pos[:, :22], motion.fps),
         "root_extent_m": root_extent_m(motion.root_positions),
@@ -87,8 +88,11 @@ def evaluate(bundle, data_dir: Path, temperature: float, seed: int = 0,  # noqa:
     summary = {
         kind: {k: float(np.mean([r[kind][k] for r in rows])) for k in keys} for kind in ("real", "generated")
     }
+    for kind in ("real", "generated"):
+        summary[kind]["max_longest_freeze_s"] = max(r[kind]["longest_freeze_s"] for r in rows)
+        summary[kind]["min_lowest_toe_m"] = min(r[kind]["lowest_toe_m"] for r in rows)
+        summary[kind]["max_lowest_toe_m"] = max(r[kind]["lowest_toe_m"] for r in rows)
     summary["generated"]["contact_accuracy"] = float(np.mean([r["contact_accuracy"] for r in rows]))
-    summary["generated"]["max_longest_freeze_s"] = max(r["generated"]["longest_freeze_s"] for r in rows)
     summary["generated"]["max_root_extent_m"] = max(r["generated"]["root_extent_m"] for r in rows)
     return {"temperature": temperature, "seed": seed, "footfix": footfix, "summary": summary, "per_sequence": rows}
 
@@ -135,10 +139,13 @@ def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | No
     ]
     fixed = after["summary"]["generated"] if after else {}
     for key in ("beat_align_score", "rhythm_hit_rate", "foot_slide_ratio", "foot_slide_m_per_contact_frame",
-                "jitter_m_s2", "longest_freeze_s", "root_extent_m"):
+                "contact_ratio", "min_lowest_toe_m", "max_lowest_toe_m", "jitter_m_s2", "longest_freeze_s",
+                "max_longest_freeze_s", "root_extent_m"):
         lines.append(f"| {key} | {real[key]:.4f} | {gen[key]:.4f} | {fixed.get(key, float('nan')):.4f} |")
     lines += [
         "",
+        "- contact_ratio: share of toe frames within 5 cm of the dance's floor; min/max_lowest_toe_m: each dance's "
+        "lowest toe (floor at y = 0), lowest and highest over the dances; max_longest_freeze_s: worst dance.",
         f"- Beat Align Score, generated / real: {gen['beat_align_score'] / real['beat_align_score']:.2f}.",
         f"- Foot sliding before the foot model, generated / real: "
         f"{gen['foot_slide_ratio'] / max(real['foot_slide_ratio'], 1e-9):.2f}.",
