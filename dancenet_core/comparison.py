@@ -36,9 +36,9 @@ COLUMNS: dict[str, str] = {
     "fid_k": "FID_k", "fid_g": "FID_g", "fid_style": "FID (style net)", "div_k": "Div_k", "div_g": "Div_g",
     "div_style": "Div (style net)", "beat_align_score": "BAS", "rhythm_hit_rate": "Rhythm hit",
     "pfc": "PFC", "foot_slide_ratio": "Foot slide", "jitter_m_s2": "Jitter (m/s²)",
-    "style_consistency": "Style consistency",
+    "longest_freeze_s": "Longest freeze (s)", "style_consistency": "Style consistency",
 }  # fmt: skip
-LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio"}
+LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio", "longest_freeze_s"}
 
 
 @dataclass
@@ -186,9 +186,9 @@ def dance_row(name: str, label: str, bundle, test_pairs: list, beats: dict, take
     return row
 
 
-def figure_3b(path: Path, music: np.ndarray, real: np.ndarray, generated: np.ndarray, fps: float,
-              title: str, seconds: float = 20.0) -> None:
-    """The music's onset envelope over the kinematic velocity of the real and the generated dance."""
+def figure_3b(path: Path, music: np.ndarray, beats_s: np.ndarray, real: np.ndarray, generated: np.ndarray,
+              fps: float, title: str, seconds: float = 20.0) -> None:
+    """The music's onset envelope and beats over the kinematic velocity of the real and the generated dance."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -207,10 +207,12 @@ def figure_3b(path: Path, music: np.ndarray, real: np.ndarray, generated: np.nda
         ax.plot(t, v / max(v.max(), 1e-9), color="tab:blue", lw=1.5, label=f"{name}: kinematic velocity")
         for b in motion_beats(pos[:n, :22], fps):
             ax.axvline(b / fps, color="tab:blue", alpha=0.25, lw=0.8)
+        beats = beats_s[(beats_s >= 0) & (beats_s < n / fps)]
+        ax.plot(beats, np.full(len(beats), 1.05), "v", color="tab:orange", ms=4, label="music beats")
         ax.set_ylabel("normalised")
         ax.legend(loc="upper right", fontsize=8)
     axes[0].set_title(title)
-    axes[1].set_xlabel("seconds (vertical lines: dance beats = velocity minima)")
+    axes[1].set_xlabel("seconds (vertical lines: dance beats = velocity minima; triangles: music beats)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -297,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
     # Figure 3b on the first test sequence of the last style (the waltzes, in the shipped split).
     i = next(i for i, p in enumerate(test_pairs) if p.style == test_pairs[-1].style)
     gen_row = next(r for r in rows if r.name == "dancenet_shipped")
-    figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.dances[i].positions(),
+    figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.beats_s[i], real.dances[i].positions(),
               gen_row.dances[i * args.takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
     print(md)
     print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png ({seconds / 60:.1f} min)")
