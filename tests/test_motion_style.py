@@ -87,16 +87,17 @@ def test_tiny_model_tells_two_synthetic_styles_apart(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not DEFAULT_WEIGHTS.is_file(), reason="motion style weights not shipped")
-def test_shipped_model_classifies_a_real_held_out_dance(shared_data: Path) -> None:
-    from dancenet_core.data.build import build_dataset, load_split
+def test_shipped_model_classifies_a_real_held_out_dance(shared_data: Path, tmp_path: Path) -> None:
+    from dancenet_core.data.build import build_sequence, load_split
+    from dancenet_core.data.dance_with_melody import read_manifest
     from dancenet_core.representation import decode
 
     model = MotionStyleModel.load()
     split = load_split()
-    pairs = {p.seq: p for p in build_dataset(shared_data, progress=False)}
-    assert set(model.styles) == {pairs[s].style for s in split["train"]}
-    dance = pairs["DANCE_W_3"]  # a held-out waltz
-    assert dance.seq in split["test"]
+    seqs = {s.seq: s for s in read_manifest(shared_data)}
+    assert set(model.styles) == {seqs[s].style for s in split["train"]}
+    assert "DANCE_W_3" in split["test"]
+    dance = build_sequence(seqs["DANCE_W_3"], tmp_path)  # a held-out waltz, fitted here (one sequence only)
     motion = decode(dance.motion[:250], 25.0)  # 10 s, as a generated dance arrives: 55 joints from features
     probs = model.classify(motion.positions(), 25.0)
     assert probs.sum() == pytest.approx(1.0, abs=1e-5)
