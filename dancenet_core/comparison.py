@@ -312,7 +312,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
     p.add_argument("--out", type=Path, default=Path("out/evaluate"))
     p.add_argument("--runs", type=Path, default=Path("runs/compare"), help="where the compared models train")
-    p.add_argument("--steps", type=int, default=400, help="training steps of every compared model")
+    p.add_argument("--steps", type=int, default=800, help="training steps of every compared model")
     p.add_argument("--jobs", type=int, default=2, help="models trained at once (one CPU thread each)")
     p.add_argument("--takes", type=int, default=2, help="dances per test sequence and model (seeds 0..)")
     p.add_argument("--temperature", type=float, default=None, help="sampling temperature of the GMM models")
