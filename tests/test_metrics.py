@@ -37,6 +37,11 @@ def test_beat_align_score_is_one_on_the_beat_and_low_off_it() -> None:
     assert beat_align_score(pos, fps, beats) > 0.95
     assert rhythm_hit_rate(pos, fps, beats) == 1.0
     assert beat_align_score(pos, fps, beats + 0.25) < 0.05  # half a beat off
+    # Rhythm hit: music beats 0.2 s from the dance's beats are hits, music beats in a still stretch are not.
+    assert rhythm_hit_rate(pos, fps, beats + 0.2) == 1.0
+    still = pos.copy()
+    still[int(5 * fps) :] = still[int(5 * fps)]  # stops dancing at 5 s
+    assert rhythm_hit_rate(still, fps, np.array([1.0, 2.0, 3.0, 7.0, 8.0])) == pytest.approx(0.6)
     # The same dance scores the same at another frame rate (sigma is kept in seconds).
     assert abs(beat_align_score(_bouncing(25.0, beats, 10.0), 25.0, beats) - 1.0) < 0.1
 
