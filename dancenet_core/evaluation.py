@@ -47,43 +47,50 @@ def dance_metrics(motion: Motion, beats_s: np.ndarray) -> dict[str, float]:
 
 def generate_for_pair(bundle, pair: PairedSequence, seed: int, temperature: float,  # noqa: ANN001
                       footfix: bool) -> tuple[Motion, np.ndarray]:
-    """DanceNet's dance to a test sequence's music span; returns the motion and predicted contacts."""
+    """The bundle's model's dance to a test sequence's music span, from the real dance's first frame;
+    returns the motion and predicted contacts."""
     from .footfix import shipped_fixer
-    from .generate import sample_dance
-    from .model.sampler import Sampling, music_conditioning
+    from .generate import finish_frames
+    from .model.variants import sample_normalized
 
     cfg = bundle.model.cfg
     style = pair.style if pair.style in bundle.styles else bundle.styles[0]
-    cond = music_conditioning(bundle.model, pair.music, bundle.styles.index(style))
-    first = bundle.normalizer.normalize(pair.motion[:1])
-    feats = sample_dance(bundle, cond, first, Sampling(temperature, np.random.default_rng(seed)))[0]
+    first = bundle.normalizer.normalize(pair.motion[:1])[0]
+    frames = sample_normalized(bundle.model, pair.music, bundle.styles.index(style), first, temperature,
+                               np.random.default_rng(seed))
+    feats = finish_frames(bundle, frames)
     if footfix:
         feats = shipped_fixer()(feats)
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     return decode(feats, cfg.fps, bundle.skeleton), feats[:, layout.contacts]
 
 
-def evaluate(bundle, data_dir: Path, temperature: float, seed: int = 0,  # noqa: ANN001
-             footfix: bool = False) -> dict:
-    """Metrics of real and generated dances on every test-split sequence of a style the model knows."""
+def split_with_beats(data_dir: Path) -> tuple[dict, dict[str, PairedSequence], dict[str, np.ndarray]]:
+    """The song split, every paired sequence by id, and each test sequence's music beats in dance time (s)."""
     from .features import analyze_music
 
     split = load_split()
     pairs = {p.seq: p for p in build_dataset(data_dir, progress=False)}
     seqs = {s.seq: s for s in read_manifest(data_dir)}
+    beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in split["test"]}
+    return split, pairs, beats
+
+
+def evaluate(bundle, data_dir: Path, temperature: float, seed: int = 0,  # noqa: ANN001
+             footfix: bool = False) -> dict:
+    """Metrics of real and generated dances on every test-split sequence of a style the model knows."""
+    split, pairs, beats = split_with_beats(data_dir)
+    layout = FeatureLayout.for_skeleton(bundle.skeleton)
     rows = []
     for seq_id in split["test"]:
         pair = pairs[seq_id]
         if pair.style not in bundle.styles:
             continue
-        seq = seqs[seq_id]
-        beats = analyze_music(seq.audio).beat_times - seq.music_offset_s
         real = decode(pair.motion, 25.0, bundle.skeleton)
         gen, contacts = generate_for_pair(bundle, pair, seed, temperature, footfix)
-        layout = FeatureLayout.for_skeleton(bundle.skeleton)
         acc = float((contacts == pair.motion[: len(contacts), layout.contacts]).mean())
-        rows.append({"seq": seq_id, "style": pair.style, "real": dance_metrics(real, beats),
-                     "generated": dance_metrics(gen, beats), "contact_accuracy": acc})
+        rows.append({"seq": seq_id, "style": pair.style, "real": dance_metrics(real, beats[seq_id]),
+                     "generated": dance_metrics(gen, beats[seq_id]), "contact_accuracy": acc})
     keys = rows[0]["real"].keys()
     summary = {
         kind: {k: float(np.mean([r[kind][k] for r in rows])) for k in keys} for kind in ("real", "generated")

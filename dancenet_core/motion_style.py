@@ -187,14 +187,19 @@ class MotionStyleModel:
         emb = self.net.embed(torch.from_numpy(batch))
         return emb.numpy(), torch.softmax(self.net.fc(emb), dim=1).numpy()
 
+    def describe(self, positions55: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+        """`embed` and `classify` of one segment from a single pass of the network."""
+        emb, probs = self._run(positions55, fps, None)
+        return emb[0], probs[0]
+
     def embed(self, positions55: np.ndarray, fps: float) -> np.ndarray:
         """Penultimate features [H] of one segment [T, J >= 22, 3] (world positions, Y up): the paper's FID
         space. Trained on segments of `segment_s` seconds; pass those (see `embed_segments`)."""
-        return self._run(positions55, fps, None)[0][0]
+        return self.describe(positions55, fps)[0]
 
     def classify(self, positions55: np.ndarray, fps: float) -> np.ndarray:
         """Style probabilities [n_styles] (in the order of `styles`) of one segment."""
-        return self._run(positions55, fps, None)[1][0]
+        return self.describe(positions55, fps)[1]
 
     def embed_segments(self, positions: np.ndarray, fps: float, hop_s: float = HOP_S) -> np.ndarray:
         """Embeddings [W, H] of a whole dance's segments every `hop_s` seconds (the last flush with its end)."""

@@ -65,11 +65,8 @@ class _OneStyleNet:
 
     styles = ["rumba", "waltz"]
 
-    def embed(self, seg: np.ndarray, fps: float) -> np.ndarray:
-        return np.array([seg[..., 1].mean(), seg[..., 0].std()])
-
-    def classify(self, seg: np.ndarray, fps: float) -> np.ndarray:
-        return np.array([0.1, 0.9])
+    def describe(self, seg: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([seg[..., 1].mean(), seg[..., 0].std()]), np.array([0.1, 0.9])
 
 
 def _dance(seed: int, frames: int = 500) -> Motion:

@@ -14,6 +14,7 @@ frames 1..T-1, `loss(out, target, music)`, and `generate(music, style, first, sa
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -101,11 +102,12 @@ class LstmGmm(_Baseline):
         return torch.cat(frames).numpy()
 
 
-class _MusicToMotion(_Baseline):
+class _MusicToMotion(_Baseline, ABC):
     """Non-autoregressive: the whole dance from the whole song at once (the first frame is not used)."""
 
+    @abstractmethod
     def body(self, ctrl: torch.Tensor) -> torch.Tensor:
-        raise NotImplementedError
+        """Control [B, T, C] -> raw outputs [B, T, O] for every frame."""
 
     def forward(self, motion: torch.Tensor, music: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
         return self.body(self.control(music, style))[:, 1:]
