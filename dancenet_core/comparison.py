@@ -37,6 +37,8 @@ COLUMNS: dict[str, str] = {
     "div_style": "Div (style net)", "beat_align_score": "BAS", "rhythm_hit_rate": "Rhythm hit",
     "pfc": "PFC", "foot_slide_ratio": "Foot slide", "jitter_m_s2": "Jitter (m/s²)",
     "longest_freeze_s": "Longest freeze (s)", "style_consistency": "Style consistency",
+    "root_extent_m": "Root extent (m)", "joint_speed_m_s": "Joint speed (m/s)",
+    "replay_m": "To nearest training 5 s (m)",
 }  # fmt: skip
 LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio", "longest_freeze_s"}
 
@@ -76,9 +78,10 @@ def segment_features(dances: list[np.ndarray], styles: list[str], fps: float, st
 
 
 def measure(rows: list[DanceSet], reference: dict, fps: float, style_net) -> dict[str, dict]:  # noqa: ANN001
-    """Every column of the table for every row; FIDs and diversities in the reference set's normalisation."""
+    """Every column of the table for every row; FIDs and diversities in the reference set's normalisation;
+    `reference["library"]` (body-relative 5-s segments of the training dances) gives the replay column."""
     from .evaluation import dance_metrics
-    from .metrics import diversity, fid, physical_foot_contact
+    from .metrics import body_relative_segments, diversity, fid, nearest_segment_distance, physical_foot_contact
 
     table = {}
     for row in rows:
@@ -94,9 +97,20 @@ def measure(rows: list[DanceSet], reference: dict, fps: float, style_net) -> dic
             r[f"fid_{key}"] = fid(reference[key][:, keep], feats[key][:, keep])
             r[f"div_{key}"] = diversity(feats[key][:, keep], reference=reference[key][:, keep])
         r["style_consistency"] = float(feats["hit"].mean())
+        segs = np.concatenate([body_relative_segments(p[:, :22], fps, hop_s=2.0) for p in positions])
+        r["replay_m"] = float(np.median(nearest_segment_distance(segs, reference["library"])))
         r["segments"] = int(len(feats["hit"]))
         table[row.name] = r | {"label": row.label, **row.info}
     return table
+
+
+def reference_features(train_dances: list[np.ndarray], fps: float, style_net) -> dict:  # noqa: ANN001
+    """What every row is measured against: the training dances' segment features and their 5-s library."""
+    from .metrics import body_relative_segments
+
+    feats = segment_features(train_dances, ["?"] * len(train_dances), fps, style_net)
+    feats["library"] = np.concatenate([body_relative_segments(p[:, :22], fps, hop_s=0.4) for p in train_dances])
+    return feats
 
 
 # ------------------------------------------------------------------------------------------ training
@@ -150,7 +164,7 @@ def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs:
 
 
 def dance_row(name: str, label: str, bundle, test_pairs: list, beats: dict, takes: int,  # noqa: ANN001
-              temperature: float, footfix: bool = False) -> DanceSet:
+              temperature: float, footfix: bool = False, smoothing: float | None = None) -> DanceSet:
     """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k)."""
     from .evaluation import generate_for_pair
 
@@ -158,7 +172,7 @@ def dance_row(name: str, label: str, bundle, test_pairs: list, beats: dict, take
                                       "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
     for pair in test_pairs:
         for take in range(takes):
-            row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix)[0])
+            row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing)[0])
             row.styles.append(pair.style)
             row.beats_s.append(beats[pair.seq])
     return row
@@ -249,7 +263,7 @@ def run(args: argparse.Namespace) -> int:
     real.beats_s = [beats[p.seq] for p in test_pairs]
     train_dances = [decode(p.motion, fps, shipped.skeleton).positions()
                     for p in pairs.values() if p.seq in set(split["train"]) and p.style in style_net.styles]
-    ref_feats = segment_features(train_dances, ["?"] * len(train_dances), fps, style_net)
+    ref_feats = reference_features(train_dances, fps, style_net)
 
     rows = [real]
     mel_pairs = None
@@ -285,7 +299,65 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def validate(args: argparse.Namespace) -> int:
+    """`dancenet validate`: DanceNet's sampling settings scored on the split's validation songs (training songs
+    that `train --validation` leaves out), never on the test songs: every weights file x temperature x output
+    smoothing dances to them (foot model on, as shipped) and is measured as `evaluate` measures, against the
+    real validation dances and the dances the models trained on."""
+    from .data.build import default_data_dir
+    from .evaluation import split_with_beats
+    from .model.bundle import DanceNetBundle
+    from .motion_style import MotionStyleModel
+    from .representation import decode
+
+    t0 = time.perf_counter()
+    data = args.data or default_data_dir()
+    split, pairs, beats = split_with_beats(data, part="validation")
+    if not split.get("validation"):
+        raise DanceNetError("the song split names no validation songs (weights/song_split.json)")
+    style_net = MotionStyleModel.load()
+    val = [pairs[s] for s in split["validation"]]
+    first = DanceNetBundle.load(args.weights[0])
+    fps = first.model.cfg.fps
+    real = DanceSet("real", "Real dances (validation songs)", [decode(p.motion, fps, first.skeleton) for p in val],
+                    [p.style for p in val], [beats[p.seq] for p in val])
+    trained_on = set(split["train"]) - set(split["validation"])
+    ref = reference_features([decode(p.motion, fps, first.skeleton).positions()
+                              for p in pairs.values() if p.seq in trained_on], fps, style_net)
+    rows = [real]
+    for path in args.weights:
+        bundle = DanceNetBundle.load(path)
+        k = bundle.model.cfg.mixtures
+        for temperature in args.temperatures:
+            for smoothing in args.smoothing:
+                name = f"{path} T={temperature} smooth={smoothing}"
+                rows.append(dance_row(name, f"{Path(path).parent.name or path} (K={k}), T {temperature}, "
+                                      f"smoothing {smoothing}", bundle, val, beats, args.takes, temperature,
+                                      footfix=True, smoothing=smoothing))
+                print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
+    table = measure(rows, ref, fps, style_net)
+    seconds = time.perf_counter() - t0
+    md = markdown(table, seconds, 0, args.takes, len(ref["hit"])).replace(
+        "every compared model trained 0 steps on the same windows. Produced by `dancenet evaluate`",
+        f"validation songs {', '.join(p.seq for p in val)}. Produced by `dancenet validate`")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "validation.md").write_text(md)
+    (args.out / "validation.json").write_text(json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
+    print(md)
+    return 0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
+    v = sub.add_parser("validate", help="DanceNet's sampling settings scored on the validation songs",
+                       description=validate.__doc__)
+    v.add_argument("weights", nargs="+", help="DanceNet weights files (bundles) to compare")
+    v.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    v.add_argument("--out", type=Path, default=Path("out/validate"))
+    v.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
+    v.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")
+    v.add_argument("--takes", type=int, default=2)
+    v.set_defaults(handler=validate)
+
     p = sub.add_parser("evaluate", help="the paper's comparison table on the test split (trains what is missing)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")

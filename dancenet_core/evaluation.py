@@ -20,6 +20,7 @@ from .metrics import (
     foot_sliding,
     jitter,
     longest_freeze_s,
+    mean_joint_speed,
     rhythm_hit_rate,
     root_extent_m,
 )
@@ -42,15 +43,16 @@ def dance_metrics(motion: Motion, beats_s: np.ndarray) -> dict[str, float]:
         "jitter_m_s2": jitter(pos[:, :22], motion.fps),
         "longest_freeze_s": longest_freeze_s(pos[:, :22], motion.fps),
         "root_extent_m": root_extent_m(motion.root_positions),
+        "joint_speed_m_s": mean_joint_speed(pos[:, :22], motion.fps),
     }
 
 
 def generate_for_pair(bundle, pair: PairedSequence, seed: int, temperature: float,  # noqa: ANN001
-                      footfix: bool) -> tuple[Motion, np.ndarray]:
+                      footfix: bool, smoothing: float | None = None) -> tuple[Motion, np.ndarray]:
     """The bundle's model's dance to a test sequence's music span, from the real dance's first frame;
     returns the motion and predicted contacts."""
     from .footfix import shipped_fixer
-    from .generate import finish_frames
+    from .generate import OUTPUT_SMOOTHING_FRAMES, finish_frames
     from .model.variants import sample_normalized
 
     cfg = bundle.model.cfg
@@ -58,21 +60,24 @@ def generate_for_pair(bundle, pair: PairedSequence, seed: int, temperature: floa
     first = bundle.normalizer.normalize(pair.motion[:1])[0]
     frames = sample_normalized(bundle.model, pair.music, bundle.styles.index(style), first, temperature,
                                np.random.default_rng(seed))
-    feats = finish_frames(bundle, frames)
+    feats = finish_frames(bundle, frames, OUTPUT_SMOOTHING_FRAMES if smoothing is None else smoothing)
     if footfix:
         feats = shipped_fixer()(feats)
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     return decode(feats, cfg.fps, bundle.skeleton), feats[:, layout.contacts]
 
 
-def split_with_beats(data_dir: Path) -> tuple[dict, dict[str, PairedSequence], dict[str, np.ndarray]]:
-    """The song split, every paired sequence by id, and each test sequence's music beats in dance time (s)."""
+def split_with_beats(
+    data_dir: Path, part: str = "test"
+) -> tuple[dict, dict[str, PairedSequence], dict[str, np.ndarray]]:
+    """The song split, every paired sequence by id, and the music beats in dance time (s) of each sequence of
+    `part` of the split ("test" or "validation")."""
     from .features import analyze_music
 
     split = load_split()
     pairs = {p.seq: p for p in build_dataset(data_dir, progress=False)}
     seqs = {s.seq: s for s in read_manifest(data_dir)}
-    beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in split["test"]}
+    beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in split.get(part, [])}
     return split, pairs, beats
 
 

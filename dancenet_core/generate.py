@@ -99,11 +99,13 @@ def sample_dance(bundle, cond: np.ndarray, first: np.ndarray, sampling, progress
     return [finish_frames(bundle, take) for take in frames]
 
 
-def finish_frames(bundle, frames: np.ndarray) -> np.ndarray:  # noqa: ANN001
-    """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance)."""
+def finish_frames(bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:  # noqa: ANN001
+    """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance);
+    `smoothing` is the Gaussian's sigma in frames (0: none)."""
     cont = bundle.model.cfg.continuous_dim
     feats = bundle.normalizer.denormalize(frames)
-    feats[:, :cont] = gaussian_filter1d(feats[:, :cont], OUTPUT_SMOOTHING_FRAMES, axis=0, mode="nearest")
+    if smoothing > 0:
+        feats[:, :cont] = gaussian_filter1d(feats[:, :cont], smoothing, axis=0, mode="nearest")
     return feats
 
 

@@ -173,3 +173,35 @@ def physical_foot_contact(positions: np.ndarray, fps: float) -> float:
     foot_v = np.linalg.norm(feet[2:] - feet[1:-1], axis=-1) * fps / PFC_FPS  # [T-2, 4]
     left, right = np.minimum(foot_v[:, 0], foot_v[:, 1]), np.minimum(foot_v[:, 2], foot_v[:, 3])
     return float((left * right * root_a / peak).mean() * PFC_SCALE)
+
+
+def mean_joint_speed(positions: np.ndarray, fps: float) -> float:
+    """Mean speed of the joints [T, J, 3] in m/s: how much the dance moves, travel included."""
+    return float(kinematic_velocity(positions).mean() * fps)
+
+
+REPLAY_SEGMENT_S = 5.0
+REPLAY_FRAME_STEP = 5  # every 5th frame: the distance changes little and costs 25x less
+
+
+def body_relative_segments(positions: np.ndarray, fps: float, hop_s: float) -> np.ndarray:
+    """5-s segments [N, F] of joint positions [T, J >= 3, 3] relative to the pelvis and turned so that the
+    segment's first frame faces +Z (hips along X): where and which way the dancer stands does not count."""
+    n, hop = int(round(REPLAY_SEGMENT_S * fps)), max(1, int(round(hop_s * fps)))
+    out = []
+    for s in range(0, len(positions) - n + 1, hop):
+        seg = positions[s : s + n : REPLAY_FRAME_STEP] - positions[s : s + n : REPLAY_FRAME_STEP, :1]
+        hips = positions[s, 1] - positions[s, 2]  # left hip - right hip (SMPL order)
+        yaw = np.arctan2(hips[2], hips[0])
+        c, si = np.cos(yaw), np.sin(yaw)
+        x, z = seg[..., 0] * c + seg[..., 2] * si, -seg[..., 0] * si + seg[..., 2] * c
+        out.append(np.stack([x, seg[..., 1], z], -1).ravel())
+    return np.asarray(out, np.float64).reshape(len(out), -1)
+
+
+def nearest_segment_distance(segments: np.ndarray, library: np.ndarray) -> np.ndarray:
+    """For each segment [N, F], the RMS joint distance (m) to its nearest segment of `library` [M, F]: a
+    dance that replays its training data sits much nearer to it than a real, unseen dance does."""
+    sq = (segments**2).sum(1)[:, None] + (library**2).sum(1)[None] - 2 * segments @ library.T
+    joints_frames = segments.shape[1] / 3
+    return np.sqrt(np.maximum(sq.min(axis=1), 0.0) / joints_frames)

@@ -20,7 +20,6 @@ Train: `python -m dancenet_core.style train --data DIR --out DIR` (DIR holds man
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 import time
@@ -277,11 +276,11 @@ class Song:
 
 
 def read_manifest(data_dir: Path) -> list[dict[str, str]]:
-    manifest = data_dir / "manifest.csv"
-    if not manifest.is_file():
-        raise DanceNetError(f"no manifest.csv in {data_dir}; point --data at the dance_with_melody folder")
-    with open(manifest, newline="") as f:
-        return list(csv.DictReader(f))
+    """The dance set's songs as rows (seq, style, song_s, audio), both folders (data/dance_with_melody.py)."""
+    from .data.dance_with_melody import read_manifest as read_sequences
+
+    return [{"seq": q.seq, "style": q.style, "song_s": str(q.song_s), "audio": str(q.audio), "song": q.song}
+            for q in read_sequences(data_dir)]
 
 
 def make_split(rows: Sequence[dict[str, str]], seed: int = SPLIT_SEED, test_fraction: float = TEST_FRACTION) -> dict:
@@ -308,6 +307,37 @@ def make_split(rows: Sequence[dict[str, str]], seed: int = SPLIT_SEED, test_frac
     return split
 
 
+def extend_split(split: dict, rows: Sequence[dict[str, str]], excluded: dict[str, str]) -> dict:
+    """The split with sequences it has not seen placed by the same by-song rule, nothing already placed moved.
+
+    A new sequence of a style the split already holds trains (the test songs stay as they were); a new
+    style's songs are split as `make_split` does, keeping sequences danced to one song on the same side.
+    `excluded` names sequences to leave out, with the reason (e.g. data found to be unusable).
+    """
+    placed = set(split["train"]) | set(split["test"]) | set(split["excluded"])
+    new = [r for r in rows if r["seq"] not in placed]
+    out = {k: (dict(v) if isinstance(v, dict) else list(v) if isinstance(v, list) else v) for k, v in split.items()}
+    out["excluded"].update({s: why for s, why in excluded.items() if s not in placed or s in split["excluded"]})
+    for s in excluded:
+        for side in ("train", "test"):
+            if s in out[side]:
+                out[side].remove(s)
+    new = [r for r in new if r["seq"] not in excluded]
+    known = {r["style"] for r in rows if r["seq"] in set(out["train"])}
+    out["train"] += [r["seq"] for r in new if r["style"] in known]
+    rng = np.random.default_rng(split["seed"])
+    for style in sorted({r["style"] for r in new} - known):
+        songs: dict[str, list[str]] = {}
+        for r in sorted((r for r in new if r["style"] == style), key=lambda r: _seq_order(r["seq"])):
+            songs.setdefault(r.get("song", r["seq"]), []).append(r["seq"])
+        keys = list(songs)
+        n_test = max(1, int(round(split["test_fraction"] * len(keys))))
+        test = set(rng.permutation(keys)[:n_test].tolist())
+        out["test"] += [s for k in keys if k in test for s in songs[k]]
+        out["train"] += [s for k in keys if k not in test for s in songs[k]]
+    return out
+
+
 def load_or_make_split(path: Path, rows: Sequence[dict[str, str]], seed: int) -> dict:
     """The split is fixed once written: later runs (and the dance model) reuse the same file."""
     if path.is_file():
@@ -328,16 +358,15 @@ def _seq_order(seq: str) -> tuple[str, int]:
     return (head, int(num)) if num.isdigit() else (seq, 0)
 
 
-def load_songs(
-    data_dir: Path, rows: Sequence[dict[str, str]], seqs: Sequence[str], log: Callable[[str], None]
-) -> list[Song]:
+def load_songs(rows: Sequence[dict[str, str]], seqs: Sequence[str], log: Callable[[str], None]) -> list[Song]:
     """Features of each song's whole audio (not only the danced span), from the feature cache if there."""
     style_of = {r["seq"]: r["style"] for r in rows}
+    audio_of = {r["seq"]: r["audio"] for r in rows}
     songs = []
     for i, seq in enumerate(seqs):
-        audio = next((p for p in sorted(data_dir.glob(f"{seq}.*")) if p.suffix.lower() != ".npz"), None)
-        if audio is None:
-            raise DanceNetError(f"no audio for {seq} in {data_dir}")
+        audio = Path(audio_of[seq])
+        if not audio.is_file():
+            raise DanceNetError(f"no audio for {seq} at {audio}")
         t = time.time()
         analysis = analyze_music(audio)
         log(f"[{i + 1}/{len(seqs)}] {seq} {style_of[seq]} {analysis.duration_s:.0f} s " f"({time.time() - t:.1f} s)")
@@ -504,8 +533,8 @@ def train_style(
         test_seqs = _validation_songs(split, rows)
         train_seqs = [s for s in train_seqs if s not in set(test_seqs)]
         log(f"validation songs (held out of training): {', '.join(test_seqs)}")
-    train = load_songs(data_dir, rows, train_seqs, log)
-    test = load_songs(data_dir, rows, test_seqs, log)
+    train = load_songs(rows, train_seqs, log)
+    test = load_songs(rows, test_seqs, log)
     torch.set_num_threads(threads)
     results = {}
     for arch in archs:

@@ -46,6 +46,34 @@ def shipped_styles(pairs: list, train_ids: set[str]) -> tuple[list[str], dict[st
     return keep, left_out
 
 
+def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
+    """Start `model` from a trained DanceNet of the same sizes but maybe fewer mixture components or styles.
+
+    Every component starts as the source's first one (means nudged apart so they can specialise, logits
+    equal); a style the source lacks starts at the mean of its style embeddings. Why: the CPU budget buys
+    a few thousand steps, and starting from a trained network spends them on what is new.
+    """
+    src, dst = source.state_dict(), model.state_dict()
+    k_src, k, d = source.cfg.mixtures, model.cfg.mixtures, model.cfg.continuous_dim
+    for name, value in src.items():
+        if name in dst and dst[name].shape == value.shape:
+            dst[name] = value.clone()
+    emb = "style_embedding.weight"
+    rows = {s: src[emb][i] for i, s in enumerate(source.cfg.styles)}
+    mean = src[emb].mean(0)
+    dst[emb] = torch.stack([rows.get(s, mean) for s in model.cfg.styles])
+    gen = torch.Generator().manual_seed(0)
+    for name in ("decoder.3.weight", "decoder.3.bias"):
+        w = src[name]
+        mu = w[k_src : k_src + d]
+        ls = w[k_src + k_src * d : k_src + 2 * k_src * d][:d]
+        contacts = w[k_src + 2 * k_src * d :]
+        logits = torch.zeros((k,) + w.shape[1:])
+        mus = [mu + (0.0 if i == 0 else 0.05 * torch.randn(mu.shape, generator=gen) * mu.std()) for i in range(k)]
+        dst[name] = torch.cat([logits, *mus, *([ls] * k), contacts])
+    model.load_state_dict(dst)
+
+
 def _ddp() -> tuple[int, int]:
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world > 1 and not torch.distributed.is_initialized():
@@ -71,16 +99,25 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
         if music_features(args.variant) == "mel":
             pairs = with_mel_music(pairs, args.data or default_data_dir())
     split = split or load_split()
-    train_ids, test_ids = set(split["train"]), set(split["test"])
+    # Validation songs (training songs held out by song) stay out of training: settings are chosen on them.
+    held_out = set(split.get("validation", [])) if args.validation else set()
+    train_ids, test_ids = set(split["train"]) - held_out, set(split["test"])
     styles, left_out = shipped_styles(pairs, train_ids)
     train_pairs = [p for p in pairs if p.seq in train_ids and p.style in styles]
     test_pairs = [p for p in pairs if p.seq in test_ids and p.style in styles]
     layout = FeatureLayout(55, 5)
-    norm = Normalizer.fit([p.motion for p in train_pairs] + [p.mirrored for p in train_pairs],
-                          binary=layout.contacts)
-    model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window)
+    init = DanceNetBundle.load(args.init) if args.init else None
+    # A warm start keeps its normaliser: its weights were learnt on that scale.
+    norm = init.normalizer if init else Normalizer.fit(
+        [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
+    model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
+                        mixtures=args.mixtures)
     cfg = model.cfg
+    if args.input_dropout is not None:
+        cfg.input_dropout = args.input_dropout
     model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
+    if init:
+        warm_start(model, init.model)
     model.to(device)
     net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 else model
     opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
@@ -91,7 +128,12 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
         "variant": args.variant,
-        "data": "Dance with Melody (Tang et al. 2018), training split of weights/song_split.json",
+        "data": "Dance with Melody (Tang et al. 2018, both folders), training split of weights/song_split.json"
+                + (" less its validation songs" if held_out else ""),
+        "validation_sequences": sorted(held_out),
+        "init": str(args.init) if args.init else None,
+        "minutes_per_style": {s: round(sum(len(p.motion) for p in train_pairs if p.style == s) / 1500, 2)
+                              for s in styles},
         "train_sequences": sorted(p.seq for p in train_pairs),
         "test_sequences": sorted(p.seq for p in test_pairs),
         "styles_left_out": left_out,
@@ -173,7 +215,8 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     return out / "dancenet.pt"
 
 
-def main(argv: list[str] | None = None) -> None:
+def parser() -> argparse.ArgumentParser:
+    """The training options (tests parse them too, so a new option never leaves them behind)."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
     p.add_argument("--variant", default="dancenet", help="model of the paper's comparison (model/variants.py)")
@@ -187,7 +230,18 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--log-every", type=int, default=20)
     p.add_argument("--checkpoint-every", type=int, default=200)
     p.add_argument("--resume", action="store_true")
-    train(p.parse_args(argv))
+    p.add_argument("--mixtures", type=int, default=8, help="Gaussian mixture components (DanceNet variants)")
+    p.add_argument("--input-dropout", type=float, default=0.1,
+                   help="share of input channels zeroed in training (the authors: 0.4; it hides the previous "
+                        "frame's root velocity so often that the model learns to shuffle: see the model card)")
+    p.add_argument("--init", type=Path, default=None, help="warm start from a trained DanceNet bundle")
+    p.add_argument("--validation", action="store_true",
+                   help="leave the split's validation songs out of training (to choose settings on them)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> None:
+    train(parser().parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from dancenet_core.comparison import DanceSet, measure, segment_features, segments
+from dancenet_core.comparison import DanceSet, measure, reference_features, segments
 from dancenet_core.model.variants import VARIANTS, build_model, sample_normalized
 from dancenet_core.motion import Motion
 from dancenet_core.representation import FeatureLayout
@@ -83,10 +83,23 @@ def test_identical_sets_score_fid_zero_and_style_consistency_counts_named_segmen
     dances = [_dance(s) for s in range(4)]
     row = DanceSet("x", "x", dances, ["waltz", "waltz", "rumba", "waltz"], [np.arange(0, 20, 0.5)] * 4)
     net = _OneStyleNet()
-    reference = segment_features([m.positions() for m in dances], row.styles, 25.0, net)
+    reference = reference_features([m.positions() for m in dances], 25.0, net)
     r = measure([row], reference, 25.0, net)["x"]
+    assert r["replay_m"] == pytest.approx(0, abs=1e-6)  # the dances are their own training data
     assert r["segments"] == 8  # two whole 10-s segments per 20-s dance
     assert r["fid_k"] == pytest.approx(0, abs=1e-4) and r["fid_g"] == pytest.approx(0, abs=1e-4)
     assert r["fid_style"] == pytest.approx(0, abs=1e-4)
     assert r["style_consistency"] == pytest.approx(6 / 8)  # the rumba's two segments are called waltz
     assert r["div_k"] > 0
+    assert r["joint_speed_m_s"] > 0 and r["root_extent_m"] > 0.5
+
+
+def test_replay_distance_tells_a_copy_from_a_new_dance() -> None:
+    from dancenet_core.metrics import body_relative_segments, nearest_segment_distance
+
+    train = _dance(0, 1000).positions()
+    library = body_relative_segments(train, 25.0, hop_s=0.04)
+    moved = train[200:450] + np.array([3.0, 0.0, -2.0])  # the same 10 s somewhere else on the floor
+    copy = nearest_segment_distance(body_relative_segments(moved, 25.0, hop_s=1.0), library)
+    new = nearest_segment_distance(body_relative_segments(_dance(7, 250).positions(), 25.0, hop_s=1.0), library)
+    assert copy.max() < 1e-6 and new.min() > 0.02

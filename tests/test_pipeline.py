@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -16,7 +15,7 @@ from dancenet_core.generate import generate_dance
 from dancenet_core.model.bundle import DanceNetBundle
 from dancenet_core.motion import Motion
 from dancenet_core.representation import encode
-from dancenet_core.train import train
+from dancenet_core.train import parser, train
 
 
 def _pair(seed: int, style: str, frames: int = 300) -> PairedSequence:
@@ -36,8 +35,8 @@ def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("run")
     pairs = [_pair(0, "rumba"), _pair(1, "rumba"), _pair(2, "waltz"), _pair(3, "waltz"), _pair(4, "waltz")]
     split = {"train": ["SEQ_0", "SEQ_1", "SEQ_2", "SEQ_3"], "test": ["SEQ_4"]}
-    args = argparse.Namespace(data=None, out=out, minutes=5.0, steps=4, batch=2, window=100, lr=4e-4, seed=0,
-                              log_every=2, checkpoint_every=2, resume=False, variant="dancenet")
+    args = parser().parse_args(["--out", str(out), "--minutes", "5", "--steps", "4", "--batch", "2", "--window", "100",
+                                "--log-every", "2", "--checkpoint-every", "2"])
     path = train(args, pairs, split)
     log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     assert log[-1]["done"] and np.isfinite(log[-1]["test_loss"])

@@ -1,5 +1,9 @@
 """Reading the Dance with Melody set (Tang et al. 2018): 23 marker-derived points, 25 fps, and its songs.
 
+Two folders: `dance_with_melody/` (the authors' alignment) and, when present beside it,
+`dance_with_melody_extra/` (13 more sequences, tango among them, re-timed from an older export: their
+alignment is approximate, about 0.23 s RMS at the end; see that folder's README).
+
 The stored frame is a mirror image; `load_positions` negates x so that the data is right-handed, Y up,
 with the joint names' sides true (see the data README).
 """
@@ -35,6 +39,12 @@ class Sequence:
     music_offset_s: float
     npz: Path
     audio: Path
+    alignment: str = "exact"  # "approximate" for the re-timed extra sequences
+    song_s: float = 0.0
+    song: str = ""  # the song's identity: sequences danced to the same song share it (split by song)
+
+
+EXTRA_FOLDER = "dance_with_melody_extra"
 
 
 def dataset_dir(root: str | Path) -> Path:
@@ -48,21 +58,29 @@ def dataset_dir(root: str | Path) -> Path:
 
 
 def read_manifest(root: str | Path) -> list[Sequence]:
+    """Every sequence of the set: the main folder's, then the extra folder's when it sits beside it."""
     d = dataset_dir(root)
-    with open(d / "manifest.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
-    return [
-        Sequence(
-            seq=r["seq"],
-            style=r["style"],
-            frames=int(r["frames"]),
-            fps=25.0,
-            music_offset_s=float(r["music_offset_s"]),
-            npz=d / f"{r['seq']}.npz",
-            audio=d / f"{r['seq']}.ogg",
-        )
-        for r in rows
-    ]
+    folders = [d] + [e for e in (d.parent / EXTRA_FOLDER,) if (e / "manifest.csv").is_file()]
+    seqs = []
+    for folder in folders:
+        with open(folder / "manifest.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+        seqs += [
+            Sequence(
+                seq=r["seq"],
+                style=r["style"],
+                frames=int(r["frames"]),
+                fps=25.0,
+                music_offset_s=float(r["music_offset_s"]),
+                npz=folder / f"{r['seq']}.npz",
+                audio=folder / f"{r['seq']}.ogg",
+                alignment=r.get("alignment", "exact"),
+                song_s=float(r.get("song_s") or 0.0),
+                song=f"{r.get('song_s')}:{r.get('cfg_start')}:{r.get('cfg_end')}",
+            )
+            for r in rows
+        ]
+    return seqs
 
 
 def load_positions(seq: Sequence) -> np.ndarray:

@@ -25,8 +25,9 @@ def music_features(variant: str) -> str:
     return "mel" if variant == "dancenet_mel" else "onset_beat_chroma"
 
 
-def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list[str], window: int) -> nn.Module:
-    """A freshly initialised network for `variant` (see VARIANTS)."""
+def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list[str], window: int,
+                mixtures: int = 1) -> nn.Module:
+    """A freshly initialised network for `variant` (see VARIANTS); `mixtures` sizes DanceNet's GMM."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     music_dim = MEL_BANDS if music_features(variant) == "mel" else 15
@@ -36,6 +37,7 @@ def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list
                                              loss="gmm" if variant == "lstm_gmm" else "mse"))
     cfg = DanceNetConfig(motion_dim=motion_dim, continuous_dim=continuous_dim, styles=styles, fps=25.0,
                          music_window=window, music_dim=music_dim, music_features=music_features(variant),
+                         mixtures=mixtures if variant != "dancenet_mse" else 1,
                          loss="mse" if variant == "dancenet_mse" else "gmm",
                          music_encoder="frame" if variant == "dancenet_no_context" else "context")
     return DanceNet(cfg)
