@@ -123,7 +123,11 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
 
     train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
-    test_windows = WindowSampler(test_pairs, norm, styles, layout, window=args.window, stride=25,
+    # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
+    # test songs (a figure for the card only).
+    eval_name = "val" if held_out else "test"
+    eval_pairs = [p for p in pairs if p.seq in held_out and p.style in styles] if held_out else test_pairs
+    test_windows = WindowSampler(eval_pairs, norm, styles, layout, window=args.window, stride=25,
                                  seed=args.seed).fixed_windows(64)
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
@@ -159,7 +163,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
         return DanceNetBundle(model, norm, mean_skeleton(train_pairs), start_frames,
                               info | {"steps": step, "train_seconds": elapsed})
 
-    def test_loss() -> dict[str, float]:
+    def held_out_loss() -> dict[str, float]:
         model.eval()
         with torch.no_grad():
             tb = test_windows
@@ -167,7 +171,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
             o = model(torch.tensor(tb.motion, device=device), music, torch.tensor(tb.style, device=device))
             loss, parts = model.loss(o, torch.tensor(tb.target[:, 1:], device=device), music[:, 1:])
         model.train()
-        return {"test_loss": loss.item()} | {f"test_{k}": v for k, v in parts.items()}
+        return {f"{eval_name}_loss": loss.item()} | {f"{eval_name}_{k}": v for k, v in parts.items()}
 
     log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
     model.train()
@@ -197,9 +201,13 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
             rec = {"step": step, "minutes": round(elapsed / 60, 2), "lr": opt.param_groups[0]["lr"],
                    "loss": loss.item(), **parts}
             if step % (args.log_every * 5) == 0 or step == 1:
-                rec |= test_loss()
+                rec |= held_out_loss()
             log.write(json.dumps(rec) + "\n")
             log.flush()
+        if rank == 0 and args.snapshot_every and step % args.snapshot_every == 0:
+            # Kept weights along the way: the learning curve (held-out FID_k against time) is measured on them.
+            (out / "snapshots").mkdir(exist_ok=True)
+            bundle().save(out / "snapshots" / f"step{step:06d}.pt")
         if rank == 0 and step % args.checkpoint_every == 0:
             torch.save({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(),
                         "step": step, "elapsed": elapsed,
@@ -207,10 +215,10 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
             t_last = time.time()
     if rank == 0:
         final = bundle()
-        final.info |= test_loss()
+        final.info |= held_out_loss()
         final.save(out / "dancenet.pt")
         log.write(json.dumps({"step": step, "minutes": round(elapsed / 60, 2), "done": True,
-                              **test_loss()}) + "\n")
+                              **held_out_loss()}) + "\n")
         log.close()
     return out / "dancenet.pt"
 
@@ -230,6 +238,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--log-every", type=int, default=20)
     p.add_argument("--checkpoint-every", type=int, default=200)
     p.add_argument("--resume", action="store_true")
+    p.add_argument("--snapshot-every", type=int, default=0, help="keep the weights every N steps (0: never)")
     p.add_argument("--mixtures", type=int, default=8, help="Gaussian mixture components (DanceNet variants)")
     p.add_argument("--input-dropout", type=float, default=0.1,
                    help="share of input channels zeroed in training (the authors: 0.4; it hides the previous "

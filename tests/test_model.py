@@ -100,3 +100,29 @@ def test_music_conditioning_any_length() -> None:
     for t in (5, 40, 41, 333):
         c = music_conditioning(m, np.zeros((t, 15), np.float32), style=0)
         assert c.shape == (t, m.cfg.music_code + m.cfg.style_dim) and np.isfinite(c).all()
+
+
+def test_sampling_commits_to_one_component_drawn_by_its_weight() -> None:
+    """Two components with means -1 and +1 and weights 0.25 / 0.75: each frame is drawn near one of the means
+    (never their average, whatever the temperature within it), about a quarter of them near -1."""
+    m = _model(mixtures=2)
+    k, d = 2, m.cfg.continuous_dim
+    with torch.no_grad():
+        last = m.decoder[3]
+        last.weight.zero_()
+        bias = torch.zeros_like(last.bias)
+        bias[:k] = torch.log(torch.tensor([0.25, 0.75]))
+        bias[k : k + d] = -1.0
+        bias[k + d : k + 2 * d] = 1.0
+        bias[k + 2 * d : k + 4 * d] = float(np.log(0.05))  # sigma 0.05 (softplus floor far below)
+        last.bias.copy_(bias)
+    cond = music_conditioning(m, np.zeros((400, 15), np.float32), style=0)
+    frames, _ = CachedSampler(m).run(np.zeros((4, 12), np.float32), cond, Sampling(1.0, np.random.default_rng(0)))
+    x = frames[:, 1:, :d]
+    assert np.abs(np.abs(x) - 1).max() < 0.35  # near a mean, never near 0
+    # All channels of a frame come from the same component.
+    assert (np.sign(x) == np.sign(x[..., :1])).all()
+    assert abs((x[..., 0] < 0).mean() - 0.25) < 0.05
+    # Temperature scales the spread within the chosen component only.
+    cold, _ = CachedSampler(m).run(np.zeros((4, 12), np.float32), cond, Sampling(0.1, np.random.default_rng(0)))
+    assert np.abs(np.abs(cold[:, 1:, :d]) - 1).max() < 0.035

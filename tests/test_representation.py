@@ -108,3 +108,26 @@ def test_resample_keeps_duration_and_pose() -> None:
     r = m.resampled(60.0)
     assert r.num_frames == 600
     np.testing.assert_allclose(r.positions()[::12], m.positions()[::5], atol=1e-9)
+
+
+def _path_length(root: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=-1).sum())
+
+
+def test_generation_post_processing_keeps_the_travel() -> None:
+    """What happens to a dance's features after sampling (denormalise, output smoothing, decode) keeps at
+    least 97% of the path the features describe: nothing on the way shrinks the root's deltas."""
+    from types import SimpleNamespace
+
+    from dancenet_core.generate import finish_frames
+
+    m = _synthetic()
+    feats = encode(m)
+    layout = FeatureLayout.for_skeleton(m.skeleton)
+    norm = Normalizer.fit(feats, binary=layout.contacts)
+    bundle = SimpleNamespace(normalizer=norm, model=SimpleNamespace(cfg=SimpleNamespace(
+        continuous_dim=layout.continuous.stop)))
+    back = decode(finish_frames(bundle, norm.normalize(feats)), m.fps, m.skeleton)
+    assert _path_length(back.root_positions) >= 0.97 * _path_length(m.root_positions)
+    extent = np.linalg.norm(back.root_positions[-1, [0, 2]] - back.root_positions[0, [0, 2]])
+    assert extent >= 0.97 * np.linalg.norm(m.root_positions[-1, [0, 2]] - m.root_positions[0, [0, 2]])

@@ -233,6 +233,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--data", type=Path, default=None)
     s.add_argument("--out", type=Path, default=Path("frame.png"))
     s.set_defaults(handler=_cmd_show)
+    a = dsub.add_parser("alignment", help="Beat Align Score of the real dances against their songs, by folder")
+    a.add_argument("--data", type=Path, default=None, help="the shared data folder (default: ../shared/data)")
+    a.set_defaults(handler=_cmd_alignment)
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
@@ -280,6 +283,13 @@ def _build_cmu(data_dir: Path, out_dir: Path) -> None:
     print(f"CMU retarget error on the mapped joints over {len(clips)} clips ({seconds / 60:.1f} min): "
           f"mean {every.mean():.2f} cm, p95 {np.percentile(every, 95):.2f} cm; worst clip {clips[worst].clip} "
           f"(p95 {np.percentile(errs[worst], 95) * 100:.2f} cm); {time.perf_counter() - start:.0f} s")
+
+
+def _cmd_alignment(args: argparse.Namespace) -> int:
+    from .alignment import alignment_table, report
+
+    print(report(alignment_table(args.data or default_data_dir())))
+    return 0
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
