@@ -278,15 +278,16 @@ class _InlineExecutor(Executor):
 
 def _processors() -> tuple:
     """Fresh per block (building them takes ~20 ms): madmom's spectrogram-difference step keeps the last
-    input, and with it the whole complex STFT, alive inside the processor."""
+    input, and with it the whole complex STFT, alive inside the processor. The onset and beat processors
+    are madmom's, sharing their STFTs, with their networks run by a compiled time loop (madmom_nets)."""
     from madmom.audio.chroma import DeepChromaProcessor
     from madmom.audio.filters import MelFilterbank
     from madmom.audio.signal import FramedSignalProcessor
     from madmom.audio.spectrogram import FilteredSpectrogramProcessor, LogarithmicSpectrogramProcessor
     from madmom.audio.stft import ShortTimeFourierTransformProcessor
-    from madmom.features.downbeats import RNNDownBeatProcessor
-    from madmom.features.onsets import RNNOnsetProcessor
     from madmom.processors import SequentialProcessor
+
+    from .madmom_nets import OnsetAndBeat
 
     mel = SequentialProcessor(
         (
@@ -303,7 +304,7 @@ def _processors() -> tuple:
             LogarithmicSpectrogramProcessor(mul=1, add=1),
         )
     )
-    return RNNOnsetProcessor(), RNNDownBeatProcessor(), DeepChromaProcessor(), mel
+    return OnsetAndBeat(), DeepChromaProcessor(), mel
 
 
 def _network_block(
@@ -313,15 +314,16 @@ def _network_block(
     whose start is on the 10-fps grid; the last block keeps every frame to the end of the signal."""
     from madmom.audio.signal import Signal
 
-    onset_p, beat_p, chroma_p, mel_p = _processors()
+    onset_beat_p, chroma_p, mel_p = _processors()
     sig = Signal(x, sample_rate=MADMOM_SAMPLE_RATE, num_channels=1)
+    onset, beat = onset_beat_p(sig)
 
     def core(a: np.ndarray, hop: int) -> np.ndarray:
         return a[c0 // hop :] if last else a[c0 // hop : c1 // hop]
 
     return (
-        core(np.asarray(onset_p(sig), np.float32), _HOP_ACT),
-        core(np.asarray(beat_p(sig), np.float32), _HOP_ACT),
+        core(np.asarray(onset, np.float32), _HOP_ACT),
+        core(np.asarray(beat, np.float32), _HOP_ACT),
         core(np.asarray(chroma_p(sig), np.float32), _HOP_10),
         core(np.asarray(mel_p(sig), np.float32), _HOP_10),
     )

@@ -89,7 +89,7 @@ def test_blocks_stitch_like_one_shot(monkeypatch: pytest.MonkeyPatch) -> None:
     context fits in the margins) must equal a one-shot madmom run, frame for frame."""
     x = music(9.53, seed=3)
     sig = as_audio(x).madmom_signal()
-    _, _, chroma_p, mel_p = F._processors()
+    _, chroma_p, mel_p = F._processors()
     chroma, mel = chroma_p(sig), mel_p(sig)
     monkeypatch.setattr(F, "BLOCK_S", 3)
     monkeypatch.setattr(F, "CONTEXT_S", 1)
@@ -115,7 +115,8 @@ class _FakeNet:
 
 def test_ten_minute_song_shape(monkeypatch: pytest.MonkeyPatch) -> None:
     """The block and DBN-window arithmetic over a 10-minute song (networks replaced by frame counters)."""
-    fakes = (_FakeNet(100, None), _FakeNet(100, 2), _FakeNet(10, 12), _FakeNet(10, F.MEL_BANDS))
+    onset, beat = _FakeNet(100, None), _FakeNet(100, 2)
+    fakes = (lambda sig: (onset(sig), beat(sig)), _FakeNet(10, 12), _FakeNet(10, F.MEL_BANDS))
     monkeypatch.setattr(F, "_processors", lambda: fakes)
     dur = 600.037
     x = np.full(int(round(dur * SR)), 0.1, np.float32)
