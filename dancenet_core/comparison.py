@@ -243,13 +243,14 @@ def run(args: argparse.Namespace) -> int:
     data = args.data or default_data_dir()
     if not data.is_dir():
         raise DanceNetError(f"no dataset at {data}; pass --data DIR (the shared data folder)")
-    variants = args.variants or list(VARIANTS)
+    variants = list(VARIANTS) if args.variants is None else args.variants
     unknown = [v for v in variants if v not in VARIANTS]
     if unknown:
         raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
     temperature = DEFAULT_TEMPERATURE if args.temperature is None else args.temperature
-    print(f"training {len(variants)} models ({args.steps} steps each, {args.jobs} at a time)")
-    train_variants(variants, args.runs, args.steps, args.seed, args.jobs, args.data)
+    if variants:
+        print(f"training {len(variants)} models ({args.steps} steps each, {args.jobs} at a time)")
+        train_variants(variants, args.runs, args.steps, args.seed, args.jobs, args.data)
 
     print("dancing to the test songs and measuring")
     split, pairs, beats = split_with_beats(data)
@@ -325,6 +326,8 @@ def validate(args: argparse.Namespace) -> int:
     ref = reference_features([decode(p.motion, fps, first.skeleton).positions()
                               for p in pairs.values() if p.seq in trained_on], fps, style_net)
     rows = [real]
+    if args.curve:
+        return learning_curve(args.curve, val, beats, ref, style_net, real, args)
     for path in args.weights:
         bundle = DanceNetBundle.load(path)
         k = bundle.model.cfg.mixtures
@@ -347,6 +350,52 @@ def validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net, real: DanceSet,  # noqa: ANN001
+                   args: argparse.Namespace) -> int:
+    """Validation loss (from the run's log) and FID_k on the validation songs (one take each, at the first
+    temperature asked for, foot model on) of every snapshot a training run kept, against training time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .model.bundle import DanceNetBundle
+
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    val_loss = {r["step"]: r["val_loss"] for r in log if "val_loss" in r}
+    points = []
+    for path in sorted((run / "snapshots").glob("step*.pt")) + [run / "dancenet.pt"]:
+        if not path.is_file():
+            continue
+        bundle = DanceNetBundle.load(path)
+        step = bundle.info["steps"]
+        row = dance_row(path.stem, path.stem, bundle, val, beats, 1, args.temperatures[0], footfix=True)
+        r = measure([row], ref, bundle.model.cfg.fps, style_net)[path.stem]
+        near = [s for s in val_loss if s <= step]
+        points.append({"step": step, "minutes": round(bundle.info["train_seconds"] / 60, 1),
+                       "val_loss": val_loss[max(near)] if near else None, "fid_k": r["fid_k"],
+                       "joint_speed_m_s": r["joint_speed_m_s"], "root_extent_m": r["root_extent_m"]})
+        print(f"  {path.name}: {points[-1]}", flush=True)
+    real_row = measure([real], ref, real.dances[0].fps, style_net)["real"]
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "learning_curve.json").write_text(json.dumps(
+        {"run": str(run), "temperature": args.temperatures[0], "real_fid_k": real_row["fid_k"], "points": points},
+        indent=1) + "\n")
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
+    minutes = [p["minutes"] for p in points]
+    ax[0].plot(minutes, [p["val_loss"] for p in points], "o-")
+    ax[0].set(xlabel="training minutes (this run)", ylabel="validation loss", title="held-out loss")
+    ax[1].plot(minutes, [p["fid_k"] for p in points], "o-", label="generated")
+    ax[1].axhline(real_row["fid_k"], color="gray", ls="--", label="real validation dances")
+    ax[1].set(xlabel="training minutes (this run)", ylabel="FID_k", title="FID_k on the validation songs")
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(args.out / "learning_curve.png", dpi=100)
+    plt.close(fig)
+    print(f"wrote {args.out / 'learning_curve.json'} and learning_curve.png")
+    return 0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     v = sub.add_parser("validate", help="DanceNet's sampling settings scored on the validation songs",
                        description=validate.__doc__)
@@ -356,6 +405,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     v.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
     v.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")
     v.add_argument("--takes", type=int, default=2)
+    v.add_argument("--curve", type=Path, default=None, metavar="RUN",
+                   help="instead: the learning curve of a training run folder (its snapshots and log)")
     v.set_defaults(handler=validate)
 
     p = sub.add_parser("evaluate", help="the paper's comparison table on the test split (trains what is missing)",
@@ -368,5 +419,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--takes", type=int, default=2, help="dances per test sequence and model (seeds 0..)")
     p.add_argument("--temperature", type=float, default=None, help="sampling temperature of the GMM models")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--variants", nargs="+", default=None, help="a subset of the models (default: all)")
+    p.add_argument("--variants", nargs="*", default=None,
+                   help="a subset of the models (default: all; none: only the shipped weights and the real dances)")
     p.set_defaults(handler=run)

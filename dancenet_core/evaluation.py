@@ -109,10 +109,37 @@ def evaluate(bundle, data_dir: Path, temperature: float, seed: int = 0,  # noqa:
     return {"temperature": temperature, "seed": seed, "footfix": footfix, "summary": summary, "per_sequence": rows}
 
 
-def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | None) -> str:  # noqa: ANN001
-    """The DanceNet model card, from the bundle's training facts and this run's measurements."""
+def validation_sections(folder: Path | None) -> list[str]:
+    """The card's validation table and learning curve, from `dancenet validate` outputs in `folder`."""
+    if folder is None:
+        return []
+    lines = []
+    if (folder / "validation.md").is_file():
+        lines += ["", "## Settings chosen on the validation songs (`dancenet validate`)", "",
+                  (folder / "validation.md").read_text().strip()]
+    curve = folder / "learning_curve.json"
+    if curve.is_file():
+        c = json.loads(curve.read_text())
+        lines += ["", f"## Learning curve (`dancenet validate --curve`, temperature {c['temperature']}, foot model on)",
+                  "", "![learning curve](../../docs/learning_curve.png)", "",
+                  "| step | minutes | validation loss | FID_k (validation songs) | joint speed m/s | root extent m |",
+                  "|---|---|---|---|---|---|"]
+        for p in c["points"]:
+            loss = "-" if p["val_loss"] is None else f"{p['val_loss']:.3f}"
+            lines.append(f"| {p['step']} | {p['minutes']} | {loss} | {p['fid_k']:.1f} | "
+                         f"{p['joint_speed_m_s']:.3f} | {p['root_extent_m']:.2f} |")
+        lines.append(f"\nReal validation dances: FID_k {c['real_fid_k']:.1f} against the same training dances.")
+    return lines
+
+
+def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | None,  # noqa: ANN001
+               extra: list[str] | None = None) -> str:
+    """The DanceNet model card, from the bundle's training facts, this run's measurements and `extra`
+    sections (validation, learning curve)."""
     info, cfg = bundle.info, bundle.model.cfg
     real, gen = before["summary"]["real"], before["summary"]["generated"]
+    held = "val" if "val_loss" in info else "test"
+    held_name = "validation songs" if held == "val" else "test songs"
     lines = [
         "# DanceNet model card",
         "",
@@ -125,7 +152,12 @@ def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | No
         f"({len(info.get('train_sequences', []))} sequences), mirrored copies added (same music).",
         f"- Styles: {', '.join(cfg.styles)}. Left out: "
         + ", ".join(f"{k} ({v})" for k, v in info.get("styles_left_out", {}).items()) + ".",
+        "- Minutes of training motion per style: "
+        + ", ".join(f"{k} {v:.1f}" for k, v in info.get("minutes_per_style", {}).items()) + ".",
         f"- Test sequences (never trained on): {', '.join(info.get('test_sequences', []))}.",
+        f"- Validation sequences (training songs left out of training; settings chosen on them): "
+        f"{', '.join(info.get('validation_sequences', [])) or 'none'}.",
+        f"- Started from: {info.get('init') or 'random initialisation'}.",
         f"- {info.get('windows', 0)} training windows of {cfg.music_window} frames (stride 3), k-means "
         f"clusters of sizes {info.get('cluster_sizes')}, sampled so each cluster weighs the same.",
         "",
@@ -133,15 +165,17 @@ def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | No
         f"- {cfg.fps:g} fps; {cfg.layers} gated residual layers, dilations {cfg.dilations[:cfg.dilation_cycle]} "
         f"repeated, receptive field {cfg.receptive_field} frames ({cfg.receptive_field / cfg.fps:.1f} s); "
         f"residual {cfg.residual_channels}, skip {cfg.skip_channels}, motion encoder {cfg.motion_channels} "
-        f"channels; music code {cfg.music_code}, style embedding {cfg.style_dim}; {cfg.mixtures} Gaussian.",
+        f"channels; music code {cfg.music_code}, style embedding {cfg.style_dim}; a mixture of {cfg.mixtures} "
+        f"Gaussian(s), sampled by drawing a component by its weight, then sigma x temperature within it.",
         f"- RMSprop, lr {info['settings']['lr']} dropped by 10 at 77% of the run, batch {info['settings']['batch']}, "
         f"input dropout {cfg.input_dropout}, noise 0.04 on inputs and 0.01 on targets, gradient clip 10, "
         f"seed {info['settings']['seed']}.",
         f"- Trained {info.get('steps')} steps in {info.get('train_seconds', 0) / 60:.0f} minutes on a 2-core CPU.",
         "",
         "## Test metrics",
-        f"Test loss (mixture NLL per modelled channel + 0.1 x contact BCE): {info.get('test_loss', float('nan')):.3f} "
-        f"(NLL {info.get('test_nll', float('nan')):.3f}, BCE {info.get('test_bce', float('nan')):.3f}).",
+        f"{held.capitalize()} loss (mixture NLL per modelled channel + 0.1 x contact BCE): "
+        f"{info.get(f'{held}_loss', float('nan')):.3f} (NLL {info.get(f'{held}_nll', float('nan')):.3f}, "
+        f"BCE {info.get(f'{held}_bce', float('nan')):.3f}), on the {held_name}.",
         "",
         f"Generated (temperature {before['temperature']}, seed {before['seed']}) vs real dances on the same "
         "music spans of the test sequences; Beat Align Score with sigma 50 ms (Bailando's 3 frames at 60 fps):",
@@ -175,7 +209,7 @@ def model_card(bundle, before: dict, after: dict | None, footfix_info: dict | No
             f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
             f"uncorrected {footfix_info['ours']['test_mse_without_model']:.4f}.",
         ]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + (extra or [])) + "\n"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -190,6 +224,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--footfix", action="store_true")
     p.add_argument("--json", type=Path, default=None)
     p.add_argument("--card", type=Path, default=None, help="write the model card (runs with and without footfix)")
+    p.add_argument("--validation", type=Path, default=None,
+                   help="folder of `dancenet validate` outputs to put in the card (validation table, learning curve)")
     args = p.parse_args(argv)
     bundle = DanceNetBundle.load(args.weights)
     data = args.data or default_data_dir()
@@ -205,7 +241,7 @@ def main(argv: list[str] | None = None) -> None:
         fixed = evaluate(bundle, data, args.temperature, args.seed, footfix=True)
         print(json.dumps({"with_footfix": fixed["summary"]["generated"]}, indent=1))
         ff = torch.load(WEIGHTS, weights_only=False)["info"] if WEIGHTS.is_file() else None
-        args.card.write_text(model_card(bundle, result, fixed, ff))
+        args.card.write_text(model_card(bundle, result, fixed, ff, validation_sections(args.validation)))
 
 
 if __name__ == "__main__":
