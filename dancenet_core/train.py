@@ -66,10 +66,13 @@ def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
     for name in ("decoder.3.weight", "decoder.3.bias"):
         w = src[name]
         mu = w[k_src : k_src + d]
+        if model.cfg.residual_output and not source.cfg.residual_output:
+            mu = torch.zeros_like(mu)  # a change of zero: the warm-started model first copies the last frame
         ls = w[k_src + k_src * d : k_src + 2 * k_src * d][:d]
         contacts = w[k_src + 2 * k_src * d :]
         logits = torch.zeros((k,) + w.shape[1:])
-        mus = [mu + (0.0 if i == 0 else 0.05 * torch.randn(mu.shape, generator=gen) * mu.std()) for i in range(k)]
+        spread = mu.std() if mu.abs().max() > 0 else w.std()
+        mus = [mu + (0.0 if i == 0 else 0.05 * torch.randn(mu.shape, generator=gen) * spread) for i in range(k)]
         dst[name] = torch.cat([logits, *mus, *([ls] * k), contacts])
     model.load_state_dict(dst)
 
@@ -111,7 +114,7 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     norm = init.normalizer if init else Normalizer.fit(
         [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
     model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
-                        mixtures=args.mixtures)
+                        mixtures=args.mixtures, residual_output=args.residual_output)
     cfg = model.cfg
     if args.input_dropout is not None:
         cfg.input_dropout = args.input_dropout
@@ -179,10 +182,13 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     budget = args.minutes * 60
     while step < args.steps and elapsed < budget:
         b = train_windows.batch(rng, args.batch)
-        x = torch.tensor(b.motion, device=device)
-        x = F.dropout(x, cfg.input_dropout, training=True)
+        noisy = torch.tensor(b.motion, device=device)
+        x = F.dropout(noisy, cfg.input_dropout, training=True)
         music = torch.tensor(b.music, device=device)
-        o = net(x, music, torch.tensor(b.style, device=device))
+        style = torch.tensor(b.style, device=device)
+        # A residual output starts from the frame before dropout: dropout hides channels from the network,
+        # not from the frame the change is added to (at generation that frame is whole).
+        o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)
         loss, parts = model.loss(o, torch.tensor(b.target[:, 1:], device=device), music[:, 1:])
         opt.zero_grad()
         loss.backward()
@@ -239,6 +245,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-every", type=int, default=200)
     p.add_argument("--resume", action="store_true")
     p.add_argument("--snapshot-every", type=int, default=0, help="keep the weights every N steps (0: never)")
+    p.add_argument("--residual-output", action=argparse.BooleanOptionalAction, default=True,
+                   help="predict each frame as a change from the last one (default) or outright (first release)")
     p.add_argument("--mixtures", type=int, default=8, help="Gaussian mixture components (DanceNet variants)")
     p.add_argument("--input-dropout", type=float, default=0.1,
                    help="share of input channels zeroed in training (the authors: 0.4; it hides the previous "

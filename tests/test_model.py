@@ -10,11 +10,11 @@ from dancenet_core.model.dancenet import DanceNet, DanceNetConfig, dancenet_loss
 from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning, naive_run
 
 
-def _model(mixtures: int = 2) -> DanceNet:
+def _model(mixtures: int = 2, residual_output: bool = False) -> DanceNet:
     torch.manual_seed(0)
     cfg = DanceNetConfig(motion_dim=12, continuous_dim=10, styles=["a", "b"], mixtures=mixtures,
                          motion_channels=32, residual_channels=16, skip_channels=32, music_window=40,
-                         music_overlap=10)
+                         music_overlap=10, residual_output=residual_output)
     m = DanceNet(cfg)
     m.eval()
     return m
@@ -64,9 +64,11 @@ def test_loss_is_finite_and_trains() -> None:
     assert np.isfinite(float(loss)) and float(loss) < first
 
 
-def test_cached_generation_equals_full_forward() -> None:
+@pytest.mark.parametrize("residual_output", [False, True])
+def test_cached_generation_equals_full_forward(residual_output: bool) -> None:
     """Teacher-force the cached sampler with known frames: its outputs equal one full forward pass."""
-    m = _model()
+    m = _model(residual_output=residual_output)
+    m.modelled[3] = False  # a constant channel: never modelled, so no change is added to it either
     rng = np.random.default_rng(0)
     t = 200
     frames = rng.normal(size=(2, t, 12)).astype(np.float32)
@@ -126,3 +128,20 @@ def test_sampling_commits_to_one_component_drawn_by_its_weight() -> None:
     # Temperature scales the spread within the chosen component only.
     cold, _ = CachedSampler(m).run(np.zeros((4, 12), np.float32), cond, Sampling(0.1, np.random.default_rng(0)))
     assert np.abs(np.abs(cold[:, 1:, :d]) - 1).max() < 0.035
+
+
+def test_a_residual_output_adds_the_change_to_the_last_frame() -> None:
+    """With residual outputs, zero change and a tiny sigma at temperature 1 replay the first frame exactly
+    where it is modelled; the same network without them predicts its own means instead."""
+    for residual in (True, False):
+        m = _model(mixtures=1, residual_output=residual)
+        with torch.no_grad():
+            last = m.decoder[3]
+            last.weight.zero_()
+            last.bias.zero_()
+            last.bias[1 + 10 : 1 + 20] = -20.0  # log sigma far below the floor: sigma = 0.03
+        cond = music_conditioning(m, np.zeros((50, 15), np.float32), style=0)
+        first = np.linspace(-1, 1, 12, dtype=np.float32)[None]
+        frames, _ = CachedSampler(m).run(first, cond, Sampling(0.0, np.random.default_rng(0)))
+        expected = first[0, :10] if residual else np.zeros(10)
+        np.testing.assert_allclose(frames[0, -1, :10], expected, atol=1e-6)

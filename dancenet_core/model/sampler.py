@@ -65,7 +65,7 @@ def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
     frames, outputs, t0, t1, queues, dilations,
     enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
     w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1,
-    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher,
+    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher, residual,
 ):  # fmt: skip
     """Frames t0..t1-1 (frame t from frames < t). With `teacher` non-empty, feed those frames instead of
     samples (used to check the cached pass equals the full forward). Outputs are recorded if sized."""
@@ -93,6 +93,11 @@ def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
             s = np.maximum(gated.reshape(n_layers * r) @ skip_w + skip_b, zero)
             s = np.maximum(s @ dec_w0 + dec_b0, zero)
             out = s @ dec_w1 + dec_b1
+            if residual:  # each component's mean is an offset from the previous frame
+                for i in range(mixtures):
+                    for j in range(cont):
+                        if modelled[j]:
+                            out[mixtures + i * cont + j] += frames[t - 1, b, j]
             if outputs.shape[0] > 0:
                 outputs[t, b] = out
             if teacher.shape[0] > 0:
@@ -214,7 +219,7 @@ class CachedSampler:
             _generate(frames, outputs, t0, t1, queues, self.dilations, *self.enc,
                       self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
                       cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
-                      np.float32(temperature), eps, unif, tf)
+                      np.float32(temperature), eps, unif, tf, cfg.residual_output)
             if progress is not None:
                 progress(t1 / t_total)
             if should_stop is not None and should_stop():
