@@ -1,24 +1,92 @@
-"""Reading the small classifiers' checkpoints with one-line errors a user can act on."""
+"""Weights files: written as plain data (tensors, lists, dicts, numbers, strings) and read with
+`torch.load(weights_only=True)`, so a crafted file cannot run code; every failure is one line a user can act on.
+Files from before this format are converted once, by someone who trusts them, with
+`python -m dancenet_core.checkpoint upgrade FILE...` (same numbers)."""
 
 from __future__ import annotations
 
+import argparse
 import pickle
+import sys
+import zipfile
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import torch
 
-from .errors import DanceNetError
+from .atomic import atomic_path
+from .errors import DanceNetError, first_line
+
+UPGRADE_HINT = "python -m dancenet_core.checkpoint upgrade"
+
+
+def to_plain(obj: Any) -> Any:
+    """`obj` with numpy arrays as tensors (same dtype and numbers), numpy scalars as numbers, paths as strings
+    and tuples as lists: what `weights_only=True` reads back."""
+    if isinstance(obj, np.ndarray):
+        return torch.from_numpy(np.ascontiguousarray(obj))
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, dict):
+        return {k: to_plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_plain(v) for v in obj]
+    return obj
+
+
+def save_weights(obj: dict, path: str | Path) -> None:
+    """Write `obj` as plain data, atomically."""
+    with atomic_path(path) as tmp:
+        torch.save(to_plain(obj), tmp)
+
+
+def load_weights(path: str | Path, what: str, hint: str) -> dict:
+    """The dict in the weights file at `path`, read without unpickling arbitrary objects."""
+    path = Path(path)
+    if not path.is_file():
+        raise DanceNetError(f"{what} not found: {path}; {hint}")
+    try:
+        d = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as e:
+        if "Unsupported global" in str(e) and zipfile.is_zipfile(path):
+            raise DanceNetError(f"{path} holds objects other than plain weights; if you trust it, convert it with "
+                                f"`{UPGRADE_HINT} {path}`") from e
+        raise DanceNetError(f"cannot read the {what} {path}: {first_line(e)}") from e
+    except (RuntimeError, OSError, EOFError, ValueError, AttributeError, IndexError) as e:
+        raise DanceNetError(f"cannot read the {what} {path}: {first_line(e)}") from e
+    if not isinstance(d, dict):
+        raise DanceNetError(f"{path} is not a {what} file (holds a {type(d).__name__}, not a dict)")
+    return d
 
 
 def read_checkpoint(path: str | Path, fmt: str, what: str, train_hint: str) -> dict:
     """The checkpoint dict at `path` if it exists, loads safely (weights only) and has format `fmt`."""
-    path = Path(path)
-    if not path.is_file():
-        raise DanceNetError(f"{what} not found: {path}; reinstall dancenet or train one with `{train_hint}`")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, OSError, EOFError, pickle.UnpicklingError) as e:
-        raise DanceNetError(f"cannot read the {what} {path}: {e}".splitlines()[0]) from e
-    if not isinstance(ckpt, dict) or ckpt.get("format") != fmt:
+    ckpt = load_weights(path, what, f"reinstall dancenet or train one with `{train_hint}`")
+    if ckpt.get("format") != fmt:
         raise DanceNetError(f"{path} is not a dancenet {what} ({fmt})")
     return ckpt
+
+
+def upgrade(path: Path) -> None:
+    """Re-save a trusted weights file of the old pickled format as plain data (numbers unchanged)."""
+    d = torch.load(path, map_location="cpu", weights_only=False)
+    save_weights(d, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m dancenet_core.checkpoint")
+    sub = p.add_subparsers(dest="command", required=True)
+    up = sub.add_parser("upgrade", help="convert TRUSTED old weights files in place to the safe format")
+    up.add_argument("files", nargs="+", type=Path)
+    args = p.parse_args(argv)
+    for f in args.files:
+        upgrade(f)
+        print(f"{f}: plain weights")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -125,9 +125,9 @@ def trained(runs: Path, variant: str, steps: int, seed: int) -> bool:
     path = run_dir(runs, variant) / "dancenet.pt"
     if not path.is_file():
         return False
-    import torch
+    from .checkpoint import load_weights
 
-    info = torch.load(path, map_location="cpu", weights_only=False)["info"]
+    info = load_weights(path, "DanceNet weights", "train it again")["info"]
     return info.get("steps") == steps and info["settings"]["seed"] == seed and info.get("variant") == variant
 
 

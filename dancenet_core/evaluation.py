@@ -234,13 +234,13 @@ def main(argv: list[str] | None = None) -> None:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result["summary"], indent=1))
     if args.card:
-        import torch
-
+        from .checkpoint import load_weights
         from .footfix import WEIGHTS
 
         fixed = evaluate(bundle, data, args.temperature, args.seed, footfix=True)
         print(json.dumps({"with_footfix": fixed["summary"]["generated"]}, indent=1))
-        ff = torch.load(WEIGHTS, weights_only=False)["info"] if WEIGHTS.is_file() else None
+        ff = load_weights(WEIGHTS, "Foot Constraint Model weights", "train it")["info"] if WEIGHTS.is_file() \
+            else None
         args.card.write_text(model_card(bundle, result, fixed, ff, validation_sections(args.validation)))
 
 

@@ -43,7 +43,8 @@ import torch
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from torch import nn
 
-from .errors import DanceNetError
+from .checkpoint import load_weights, save_weights
+from .errors import DanceNetError, first_line
 from .kinematics import rotvec_to_matrix_torch
 from .metrics import CONTACT_TOE_M
 from .representation import FeatureLayout, Normalizer
@@ -302,22 +303,24 @@ class FootFixer:
         return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
 
     def save(self, path: Path, info: dict) -> None:
-        torch.save({"state_dict": self.model.state_dict(), "mean": self.norm.mean, "std": self.norm.std,
-                    "constant": self.norm.constant, "num_joints": self.layout.num_joints,
-                    "num_end_sites": self.layout.num_end_sites, "skeleton_offsets": self.skeleton.offsets,
-                    "info": info}, path)
+        save_weights({"state_dict": self.model.state_dict(), "mean": self.norm.mean, "std": self.norm.std,
+                      "constant": self.norm.constant, "num_joints": self.layout.num_joints,
+                      "num_end_sites": self.layout.num_end_sites, "skeleton_offsets": self.skeleton.offsets,
+                      "info": info}, path)
 
     @classmethod
     def load(cls, path: Path = WEIGHTS) -> FootFixer:
-        if not path.is_file():
-            raise DanceNetError(f"Foot Constraint Model weights not found at {path}; reinstall the package")
-        d = torch.load(path, map_location="cpu", weights_only=False)
-        layout = FeatureLayout(d["num_joints"], d["num_end_sites"])
-        ch = FootChannels.for_layout(layout)
-        model = FootConstraintModel(len(ch.inputs), len(ch.lower))
-        model.load_state_dict(d["state_dict"])
-        return cls(model, Normalizer(d["mean"], d["std"], d["constant"]), layout,
-                   Skeleton(np.asarray(d["skeleton_offsets"])))
+        d = load_weights(path, "Foot Constraint Model weights", "reinstall the package or use --no-footfix")
+        try:
+            layout = FeatureLayout(d["num_joints"], d["num_end_sites"])
+            ch = FootChannels.for_layout(layout)
+            model = FootConstraintModel(len(ch.inputs), len(ch.lower))
+            model.load_state_dict(d["state_dict"])
+            norm = Normalizer(np.asarray(d["mean"]), np.asarray(d["std"]), np.asarray(d["constant"]))
+            return cls(model, norm, layout, Skeleton(np.asarray(d["skeleton_offsets"])))
+        except (RuntimeError, KeyError, TypeError, ValueError, AttributeError) as e:
+            raise DanceNetError(f"{path} is not a Foot Constraint Model weights file "
+                                f"({first_line(e)}); reinstall the package or use --no-footfix") from e
 
 
 @lru_cache(maxsize=1)

@@ -38,7 +38,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .checkpoint import read_checkpoint
+from .checkpoint import read_checkpoint, save_weights
 from .errors import DanceNetError
 from .skeleton import DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, PARENTS
 
@@ -167,9 +167,9 @@ class MotionStyleModel:
 
     def save(self, path: str | Path) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
-        torch.save({"format": CHECKPOINT_FORMAT, "styles": list(self.styles), "config": self.config,
-                    "meta": {**self.meta, "segment_s": self.segment_s}, "state_dict": self.net.state_dict()},
-                   path)  # fmt: skip
+        save_weights({"format": CHECKPOINT_FORMAT, "styles": list(self.styles), "config": self.config,
+                      "meta": {**self.meta, "segment_s": self.segment_s}, "state_dict": self.net.state_dict()},
+                     path)  # fmt: skip
 
     @property
     def embedding_size(self) -> int:

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .checkpoint import read_checkpoint
+from .checkpoint import read_checkpoint, save_weights
 from .errors import DanceNetError
 from .features import (
     BEAT_COL,
@@ -222,7 +222,7 @@ class StyleModel:
             "hop_s": self.hop / self.fps,
             "feature_version": FEATURE_VERSION,
         }
-        torch.save(
+        save_weights(
             {
                 "format": CHECKPOINT_FORMAT,
                 "arch": self.arch,

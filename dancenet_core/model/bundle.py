@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..errors import DanceNetError
+from ..checkpoint import load_weights, save_weights
+from ..errors import DanceNetError, first_line
 from ..representation import Normalizer
 from ..skeleton import Skeleton
 from .dancenet import DanceNet
@@ -45,10 +46,8 @@ class DanceNetBundle:
         }
 
     def save(self, path: str | Path) -> None:
-        path = Path(path)
-        tmp = path.with_suffix(".tmp")
-        torch.save(self.to_dict(), tmp)
-        tmp.replace(path)
+        """Plain tensors and lists only (see checkpoint.py), written atomically."""
+        save_weights(self.to_dict(), path)
 
     @classmethod
     def from_dict(cls, d: dict) -> DanceNetBundle:
@@ -59,15 +58,13 @@ class DanceNetBundle:
         model.eval()
         n = d["normalizer"]
         return cls(model, Normalizer(np.asarray(n["mean"]), np.asarray(n["std"]), np.asarray(n["constant"])),
-                   Skeleton(np.asarray(d["skeleton_offsets"])), dict(d["start_frames"]), dict(d["info"]))
+                   Skeleton(np.asarray(d["skeleton_offsets"])),
+                   {k: np.asarray(v) for k, v in d["start_frames"].items()}, dict(d["info"]))
 
     @classmethod
     def load(cls, path: str | Path = DEFAULT_BUNDLE) -> DanceNetBundle:
-        path = Path(path)
-        if not path.is_file():
-            raise DanceNetError(f"DanceNet weights not found at {path}; reinstall the package or pass --weights")
+        d = load_weights(path, "DanceNet weights", "reinstall the package or pass --weights")
         try:
-            d = torch.load(path, map_location="cpu", weights_only=False)
             return cls.from_dict(d.get("bundle", d))
-        except (RuntimeError, KeyError, TypeError, ValueError) as e:
-            raise DanceNetError(f"{path} is not a DanceNet weights file ({e})") from e
+        except (RuntimeError, KeyError, TypeError, ValueError, AttributeError) as e:
+            raise DanceNetError(f"{path} is not a DanceNet weights file ({first_line(e)})") from e
