@@ -3,9 +3,10 @@
     blender --background --python blender_addon/batch.py -- SONG... --out DIR [--fbx] [--bvh] [--render]
     python blender_addon/batch.py SONG... --out DIR [...]          (Blender as a Python module, pip bpy)
 
-Each song gets DIR/<song>/ with <song>.blend (rig, mannequin, the song's strip, beat markers, one action
-per take) and the exports asked for. One summary line per song; the exit status is 1 if any song
-failed, after the others have finished.
+Each song gets its own folder DIR/<song>/ (DIR/<song>_2/ ... when that name is taken, by an earlier song
+of the batch or a folder already there, unless --overwrite; a name never leads outside DIR) with
+<song>.blend (rig, mannequin, the song's strip, beat markers, one action per take) and the exports asked
+for. One summary line per song; the exit status is 1 if any song failed, after the others have finished.
 """
 
 from __future__ import annotations
@@ -57,13 +58,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--bvh", action="store_true", help="also write <song>.bvh")
     p.add_argument("--render", action="store_true", help="also render <song>.mp4 (Workbench, with the song)")
     p.add_argument("--resolution", type=_resolution, default=(640, 360), help="render size (default 640x360)")
+    p.add_argument("--overwrite", action="store_true", help="reuse a song's existing folder, replacing its files")
     return p.parse_args(argv)
 
 
 def run_song(
-    addon: SimpleNamespace, song: Path, args: argparse.Namespace, generator: Callable[..., Any] | None
+    addon: SimpleNamespace, song: Path, out: Path, args: argparse.Namespace, generator: Callable[..., Any] | None
 ) -> str:
-    """Generate, save and export one song; returns its summary line. Raises on failure."""
+    """Generate, save and export one song into the folder `out`; returns its summary line. Raises on failure."""
     pipeline = addon.pipeline
     started = time.perf_counter()
     song = pipeline.check_song(song)
@@ -78,18 +80,17 @@ def run_song(
     scene.render.fps, scene.render.fps_base = args.fps or round(result.motions[0].fps), 1.0
     applied = pipeline.apply_result(context, pipeline.Plan(request), result)
 
-    out = args.out / song.stem
     out.mkdir(parents=True, exist_ok=True)
     rig = bpy.data.objects[applied.rig]
     written = []
     if args.bvh:
-        written.append(addon.export.export_bvh(context, rig, out / f"{song.stem}.bvh"))
+        written.append(addon.export.export_bvh(context, rig, out / f"{out.name}.bvh"))
     if args.fbx:
-        written.append(addon.export.export_fbx(context, rig, out / f"{song.stem}.fbx"))
+        written.append(addon.export.export_fbx(context, rig, out / f"{out.name}.fbx"))
     if args.render:
-        addon.render.setup_preview(scene, rig, out / f"{song.stem}.mp4", args.resolution)
-    blend = out / f"{song.stem}.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+        addon.render.setup_preview(scene, rig, out / f"{out.name}.mp4", args.resolution)
+    blend = out / f"{out.name}.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))  # Blender writes `name.blend@` and renames it into place
     written.insert(0, blend)
     if args.render:
         written.append(addon.render.render_preview(scene))
@@ -109,11 +110,22 @@ def main(argv: list[str] | None = None, generator: Callable[..., Any] | None = N
     args = parse_args(argv)
     addon = _addon()
     from dancenet_core.errors import DanceNetError  # importable once the add-on has set up its paths
+    from dancenet_core.outputs import check_folder_writable, free_folder, safe_stem
 
-    failures = 0
+    try:
+        check_folder_writable(args.out)
+    except DanceNetError as e:
+        print(f"FAILED  {e}", flush=True)
+        return 1
+    failures, taken = 0, set()
     for song in args.songs:
+        stem = safe_stem(song, "song")
+        out = args.out / stem
+        if out in taken or (out.exists() and not args.overwrite):
+            out = free_folder(args.out, stem, taken)
+        taken.add(out)
         try:
-            print(run_song(addon, song, args, generator), flush=True)
+            print(run_song(addon, song, out, args, generator), flush=True)
         except Exception as e:
             failures += 1
             if not isinstance(e, DanceNetError):

@@ -1,4 +1,5 @@
-"""BVH and FBX export of a dancing rig, with settings that re-import into Blender (and other tools) as is."""
+"""BVH and FBX export of a dancing rig, with settings that re-import into Blender (and other tools) as is;
+written to a temporary name and renamed into place, so an interrupted export never leaves half a file."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 
 import bpy
 
+from dancenet_core.atomic import atomic_path
 from dancenet_core.errors import DanceNetError
 
 
@@ -54,9 +56,10 @@ def export_bvh(context: bpy.types.Context, rig: bpy.types.Object, path: str | Pa
     path = Path(path)
     start, end = action_frames(rig)
     _object_mode(context)
-    with _selected(context, [rig], rig), context.temp_override(active_object=rig, object=rig):
+    with atomic_path(path) as tmp, _selected(context, [rig], rig), \
+            context.temp_override(active_object=rig, object=rig):
         bpy.ops.export_anim.bvh(
-            filepath=str(path), frame_start=start, frame_end=end, global_scale=1.0,
+            filepath=str(tmp), frame_start=start, frame_end=end, global_scale=1.0,
             rotate_mode="NATIVE", root_transform_only=True,
         )  # fmt: skip
     return path
@@ -78,9 +81,9 @@ def export_fbx(context: bpy.types.Context, rig: bpy.types.Object, path: str | Pa
     _object_mode(context)
     try:
         scene.frame_start, scene.frame_end = frames  # the exporter bakes the scene's frame range
-        with _selected(context, [rig, *meshes], rig):
+        with atomic_path(path) as tmp, _selected(context, [rig, *meshes], rig):
             bpy.ops.export_scene.fbx(
-                filepath=str(path), use_selection=True, object_types={"ARMATURE", "MESH"},
+                filepath=str(tmp), use_selection=True, object_types={"ARMATURE", "MESH"},
                 add_leaf_bones=False, bake_anim=True, bake_anim_use_all_bones=True,
                 bake_anim_use_nla_strips=False, bake_anim_use_all_actions=False,
                 bake_anim_force_startend_keying=True, bake_anim_step=1.0, bake_anim_simplify_factor=0.0,

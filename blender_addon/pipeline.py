@@ -6,7 +6,7 @@ bpy data, so a cancelled or failed generation leaves the file exactly as it was.
 
 from __future__ import annotations
 
-import re
+import json
 import threading
 import traceback
 from collections.abc import Callable
@@ -23,8 +23,12 @@ from . import bonemap, deps, rig
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
 
 # Markers this add-on owns (replaced on each generation); anything else on the timeline is left alone.
-_MARKER_NAME = re.compile(r"^(bar \d+|·)$")
 BEAT_MARKER = "·"
+# The (name, frame) pairs of the timeline markers the add-on made, as JSON on the scene: only those are
+# replaced by the next Generate, never a user's marker that happens to be called "bar 2".
+MARKERS_PROP = "dancenet_markers"
+# Set on the actions the add-on writes, to tell them from a user's own action on the same rig.
+ACTION_PROP = "dancenet"
 RIG_NAME = "DanceNet Dancer"
 _AUDIO_SUFFIXES = frozenset(".wav .mp3 .ogg .oga .flac .m4a .aac .aif .aiff .opus .wma .mp4 .webm".split())
 
@@ -284,13 +288,27 @@ def _song_strip(scene: bpy.types.Scene, song: Path, frame: int) -> bpy.types.Str
 
 
 def _set_markers(scene: bpy.types.Scene, result: Any, frame_start: int, fps: float) -> None:
-    for marker in [m for m in scene.timeline_markers if _MARKER_NAME.match(m.name)]:
+    ours = {(name, frame) for name, frame in json.loads(scene.get(MARKERS_PROP, "[]"))}
+    for marker in [m for m in scene.timeline_markers if (m.name, m.frame) in ours]:
         scene.timeline_markers.remove(marker)
     downbeats = {round(float(t) * fps) for t in result.downbeat_times}
-    for i, t in enumerate(sorted(downbeats), start=1):
-        scene.timeline_markers.new(f"bar {i}", frame=frame_start + t)
-    for t in sorted({round(float(t) * fps) for t in result.beat_times} - downbeats):
-        scene.timeline_markers.new(BEAT_MARKER, frame=frame_start + t)
+    made = [(f"bar {i}", frame_start + t) for i, t in enumerate(sorted(downbeats), start=1)]
+    beats = {round(float(t) * fps) for t in result.beat_times} - downbeats
+    made += [(BEAT_MARKER, frame_start + t) for t in sorted(beats)]
+    for name, frame in made:
+        scene.timeline_markers.new(name, frame=frame)
+    scene[MARKERS_PROP] = json.dumps(made)
+
+
+def _keep_users_action(target: bpy.types.Object) -> str | None:
+    """Give the rig's current action a fake user if it is the user's own (not one of ours), so replacing it
+    on the rig never loses it on save; returns a note for the report saying where it went."""
+    anim = target.animation_data
+    action = anim.action if anim is not None else None
+    if action is None or action.get(ACTION_PROP):
+        return None
+    action.use_fake_user = True
+    return f"your action '{action.name}' was kept with a fake user (pick it again in the Action Editor)"
 
 
 def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
@@ -330,11 +348,15 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
     if skipped:
         notes.append(f"not in this rig: {', '.join(skipped)}")
 
+    kept = _keep_users_action(target)
+    if kept:
+        notes.append(kept)
     actions = []
     frames = 0
     for k, motion in enumerate(result.motions, start=1):
         name = _action_name(req.song, result.style, req.seed, k, len(result.motions))
         action = keyframes.apply_motion(target, motion, bone_map, name, frame_start, fps)
+        action[ACTION_PROP] = True
         actions.append(action)
         frames = max(frames, round(motion.duration * fps))
     anim = target.animation_data

@@ -7,6 +7,7 @@ import json
 import time
 from pathlib import Path
 
+from .atomic import write_text
 from .errors import DanceNetError
 
 # Songs longer than this get a progress bar; shorter ones finish before a bar would be worth reading.
@@ -72,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
             "seconds": round(elapsed, 2),
         }
         try:
-            Path(args.json).write_text(json.dumps(out, indent=1) + "\n")
+            write_text(args.json, json.dumps(out, indent=1, allow_nan=False) + "\n")
         except OSError as e:
             raise DanceNetError(f"cannot write {args.json}: {e.strerror}; choose a writable path") from e
     return 0

@@ -23,6 +23,7 @@ from typing import NoReturn
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .atomic import atomic_open
 from .errors import DanceNetError
 from .motion import Motion
 from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
@@ -468,12 +469,9 @@ def _write(
             block(j, 0)
     values = np.concatenate([np.asarray(columns[j], dtype=np.float64) for j in order], axis=1)
     out += ["MOTION", f"Frames: {len(values)}", f"Frame Time: {frame_time:.8f}"]
-    try:
-        with open(path, "w", encoding="utf-8", newline="\n") as f:
-            f.write("\n".join(out) + "\n")
-            np.savetxt(f, values, fmt="%.6f")
-    except OSError as e:
-        raise DanceNetError(f"cannot write {path}: {e.strerror}") from e
+    with atomic_open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write("\n".join(out) + "\n")
+        np.savetxt(f, values, fmt="%.6f")
 
 
 def write_bvh(path: str | Path, motion: Motion, rotation_order: str = "ZXY", scale: float = 1.0) -> None:

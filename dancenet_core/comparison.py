@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_text
 from .errors import DanceNetError
 from .motion import Motion
 
@@ -285,8 +286,8 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     seconds = time.perf_counter() - t0
     md = markdown(table, seconds, args.steps, args.takes, len(ref_feats["hit"]))
-    (args.out / "comparison.md").write_text(md)
-    (args.out / "comparison.json").write_text(json.dumps(
+    write_text(args.out / "comparison.md", md)
+    write_text(args.out / "comparison.json", json.dumps(
         {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,
          "seed": args.seed, "test_sequences": [p.seq for p in test_pairs], "reference_segments":
          len(ref_feats["hit"]), "rows": table}, indent=1) + "\n")
@@ -344,8 +345,8 @@ def validate(args: argparse.Namespace) -> int:
         "every compared model trained 0 steps on the same windows. Produced by `dancenet evaluate`",
         f"validation songs {', '.join(p.seq for p in val)}. Produced by `dancenet validate`")
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "validation.md").write_text(md)
-    (args.out / "validation.json").write_text(json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
+    write_text(args.out / "validation.md", md)
+    write_text(args.out / "validation.json", json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
     print(md)
     return 0
 
@@ -378,7 +379,7 @@ def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net, real
         print(f"  {path.name}: {points[-1]}", flush=True)
     real_row = measure([real], ref, real.dances[0].fps, style_net)["real"]
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "learning_curve.json").write_text(json.dumps(
+    write_text(args.out / "learning_curve.json", json.dumps(
         {"run": str(run), "temperature": args.temperatures[0], "real_fid_k": real_row["fid_k"], "points": points},
         indent=1) + "\n")
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))

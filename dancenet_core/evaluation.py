@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_text
 from .data.build import PairedSequence, build_dataset, default_data_dir, load_split
 from .data.dance_with_melody import read_manifest
 from .metrics import (
@@ -231,7 +232,7 @@ def main(argv: list[str] | None = None) -> None:
     data = args.data or default_data_dir()
     result = evaluate(bundle, data, args.temperature, args.seed, args.footfix)
     if args.json:
-        args.json.write_text(json.dumps(result, indent=1) + "\n")
+        write_text(args.json, json.dumps(result, indent=1) + "\n")
     print(json.dumps(result["summary"], indent=1))
     if args.card:
         from .checkpoint import load_weights
@@ -241,7 +242,7 @@ def main(argv: list[str] | None = None) -> None:
         print(json.dumps({"with_footfix": fixed["summary"]["generated"]}, indent=1))
         ff = load_weights(WEIGHTS, "Foot Constraint Model weights", "train it")["info"] if WEIGHTS.is_file() \
             else None
-        args.card.write_text(model_card(bundle, result, fixed, ff, validation_sections(args.validation)))
+        write_text(args.card, model_card(bundle, result, fixed, ff, validation_sections(args.validation)))
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_open
 from .audio import MADMOM_SAMPLE_RATE, Audio, load_audio
 
 FEATURE_VERSION = "music-features-1"  # change whenever any computation below changes
@@ -93,9 +94,8 @@ class MusicAnalysis:
         }
         if self.mel is not None:
             arrays["mel"] = self.mel
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
-        np.savez(tmp, **arrays)
-        os.replace(tmp, path)
+        with atomic_open(path, "wb") as f:
+            np.savez(f, **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> MusicAnalysis:

@@ -27,6 +27,10 @@ if TYPE_CHECKING:
 # Sampling temperature (scales the mixture's sigma), as the authors sample. At 0 the dance is the mixture's
 # mean and freezes within a minute; above ~0.3 per-frame noise shows as jitter.
 DEFAULT_TEMPERATURE = 0.1
+# Above this the mixture's sigma swamps the dance (temperature 1e9 put the dancer 7e7 m away).
+MAX_TEMPERATURE = 3.0
+MAX_SEED = 2**32 - 1
+MAX_TAKES = 100
 OUTPUT_SMOOTHING_FRAMES = 1.0
 
 Progress = Callable[[str, float], None]
@@ -109,6 +113,37 @@ def finish_frames(bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHIN
     return feats
 
 
+def check_song_path(song: str | Path) -> Path:
+    """`song` as a Path if it names a file; a one-line error saying what it is otherwise."""
+    path = Path(song)
+    if path.is_dir():
+        raise DanceNetError(f"{song} is a folder, not an audio file; give the path of a song file")
+    if not path.is_file():
+        raise DanceNetError(f"song not found: {song} (check the path)")
+    return path
+
+
+def check_request(song: str | Path, style: str, seed: int, temperature: float, takes: int, footfix: bool,
+                  weights: str | None) -> None:
+    """Reject bad arguments in a second, before a minute of music analysis: loads the weights (and the foot
+    model when asked) so a bad file or an unknown style is reported now."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed <= MAX_SEED:
+        raise DanceNetError(f"seed must be a whole number from 0 to {MAX_SEED}, got {seed}")
+    if not 0 <= temperature <= MAX_TEMPERATURE:  # also false for NaN
+        raise DanceNetError(f"temperature must be from 0 to {MAX_TEMPERATURE:g} (0 = the most likely dance, "
+                            f"default {DEFAULT_TEMPERATURE:g}), got {temperature}")
+    if not 1 <= takes <= MAX_TAKES:
+        raise DanceNetError(f"takes must be from 1 to {MAX_TAKES}, got {takes}")
+    check_song_path(song)
+    styles = load_bundle(weights).styles
+    if style != "auto" and style not in styles:
+        raise DanceNetError(f"unknown style '{style}'; choose auto or one of: {', '.join(styles)}")
+    if footfix:
+        from .footfix import shipped_fixer
+
+        shipped_fixer()
+
+
 def generate_dance(
     song: str | Path,
     style: str = "auto",
@@ -125,12 +160,7 @@ def generate_dance(
     from .features import analyze_music
     from .model.sampler import Sampling, music_conditioning
 
-    if takes < 1:
-        raise DanceNetError("takes must be at least 1")
-    if not temperature >= 0:
-        raise DanceNetError("temperature must be 0 or more (0 = the most likely dance)")
-    if not Path(song).is_file():
-        raise DanceNetError(f"song not found: {song} (check the path)")
+    check_request(song, style, seed, temperature, takes, footfix, weights)
     report = progress or (lambda _s, _f: None)
     cancelled = should_cancel or (lambda: False)
     timings: dict[str, float] = {}

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import time
 from pathlib import Path
 
-from .errors import DanceNetError
+from .atomic import write_text
+from .outputs import check_folder_writable, refuse_overwrite, safe_stem
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,11 +25,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
     p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
+    p.add_argument("--overwrite", action="store_true", help="replace outputs already in the folder")
     p.set_defaults(handler=run)
 
 
-def _stem(song: Path) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", song.stem) or "dance"
+def _names(stem: str, takes: int) -> list[str]:
+    return [stem] if takes == 1 else [f"{stem}_take{k}" for k in range(1, takes + 1)]
+
+
+def _outputs(args: argparse.Namespace, stem: str) -> list[Path]:
+    """Every file this run will write, so none is replaced unless the user asked."""
+    suffixes = (".bvh", ".npz", ".mp4") if args.render else (".bvh", ".npz")
+    return [args.out / f"{n}{s}" for n in _names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,10 +45,10 @@ def run(args: argparse.Namespace) -> int:
     from .bvh import write_bvh
     from .generate import generate_dance
 
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise DanceNetError(f"cannot create the output folder {args.out}: {e.strerror}") from e
+    stem = safe_stem(args.song)
+    check_folder_writable(args.out)
+    if not args.overwrite:
+        refuse_overwrite(_outputs(args, stem))
     bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}", delay=0.5,
                leave=False)
     state = {"stage": ""}
@@ -61,11 +68,9 @@ def run(args: argparse.Namespace) -> int:
                                 weights=str(args.weights) if args.weights else None)
     finally:
         bar.close()
-    stem = _stem(args.song)
     files = []
     t = time.perf_counter()
-    for k, motion in enumerate(result.motions, start=1):
-        name = stem if len(result.motions) == 1 else f"{stem}_take{k}"
+    for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
         write_bvh(args.out / f"{name}.bvh", motion)
         motion.save(args.out / f"{name}.npz")
         files += [f"{name}.bvh", f"{name}.npz"]
@@ -74,8 +79,7 @@ def run(args: argparse.Namespace) -> int:
         from .render import render_motion
 
         t = time.perf_counter()
-        for k, motion in enumerate(result.motions, start=1):
-            name = stem if len(result.motions) == 1 else f"{stem}_take{k}"
+        for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
             render_motion(motion, args.out / f"{name}.mp4", audio=args.song)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
@@ -97,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
         "files": files,
     }
-    (args.out / f"{stem}.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(args.out / f"{stem}.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
           f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
     return 0

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from .atomic import atomic_open
 from .kinematics import fk_numpy
 from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, MIRROR_INDEX, PARENTS, EndSite, Skeleton
 
@@ -84,20 +85,21 @@ class Motion:
         return Motion(rots, root, self.fps, self.skeleton)
 
     def save(self, path: str | Path) -> None:
-        """Write an .npz that `Motion.load` reads back exactly."""
+        """Write an .npz that `Motion.load` reads back exactly (whole or not at all)."""
         s = self.skeleton
-        np.savez_compressed(
-            path,
-            rotations=self.rotations.astype(np.float32),
-            root_positions=self.root_positions.astype(np.float32),
-            fps=np.float64(self.fps),
-            joint_names=np.array(s.names),
-            parents=np.array(s.parents),
-            offsets=s.offsets,
-            end_site_names=np.array([e.name for e in s.end_sites]),
-            end_site_parents=s.end_site_parents(),
-            end_site_offsets=s.end_site_offsets(),
-        )
+        with atomic_open(path, "wb") as f:
+            np.savez_compressed(
+                f,
+                rotations=self.rotations.astype(np.float32),
+                root_positions=self.root_positions.astype(np.float32),
+                fps=np.float64(self.fps),
+                joint_names=np.array(s.names),
+                parents=np.array(s.parents),
+                offsets=s.offsets,
+                end_site_names=np.array([e.name for e in s.end_sites]),
+                end_site_parents=s.end_site_parents(),
+                end_site_offsets=s.end_site_offsets(),
+            )
 
     @classmethod
     def load(cls, path: str | Path) -> Motion:

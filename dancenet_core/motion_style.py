@@ -38,6 +38,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .atomic import write_text
 from .checkpoint import read_checkpoint, save_weights
 from .errors import DanceNetError
 from .skeleton import DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, PARENTS
@@ -428,7 +429,7 @@ def train_and_ship(out: Path = DEFAULT_WEIGHTS, steps: int = STEPS, seed: int = 
     model.meta["metrics"] = evaluate(model, test)
     model.meta["train_metrics"] = {k: v for k, v in evaluate(model, train).items() if k.endswith("accuracy")}
     model.save(out)
-    out.with_name(MODEL_CARD.name).write_text(model_card(model, train, test, split))
+    write_text(out.with_name(MODEL_CARD.name), model_card(model, train, test, split))
     m = model.meta["metrics"]
     print(f"trained in {model.meta['train_seconds']} s; held-out segment accuracy {m['segment_accuracy']:.3f}, "
           f"dance accuracy {m['dance_accuracy']:.3f}")  # fmt: skip
@@ -442,7 +443,7 @@ def write_card(weights: Path = DEFAULT_WEIGHTS) -> Path:
         raise DanceNetError(f"{weights} has no held-out metrics; train it with `--train`")
     train, test, split = load_dances()
     card = weights.with_name(MODEL_CARD.name)
-    card.write_text(model_card(model, train, test, split))
+    write_text(card, model_card(model, train, test, split))
     return card
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .atomic import atomic_open
 from .kinematics import fk_numpy
 from .motion import Motion
 from .skeleton import DEFAULT_SKELETON, TOE_ENDS, Skeleton
@@ -209,7 +210,8 @@ class Normalizer:
         return (x * self.std + self.mean).astype(np.float32)
 
     def save(self, path: str | Path) -> None:
-        np.savez(path, mean=self.mean, std=self.std, constant=self.constant)
+        with atomic_open(path, "wb") as f:
+            np.savez(f, mean=self.mean, std=self.std, constant=self.constant)
 
     @classmethod
     def load(cls, path: str | Path) -> Normalizer:

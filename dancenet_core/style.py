@@ -31,6 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .atomic import write_text
 from .checkpoint import read_checkpoint, save_weights
 from .errors import DanceNetError
 from .features import (
@@ -351,7 +352,7 @@ def load_or_make_split(path: Path, rows: Sequence[dict[str, str]], seed: int) ->
         return split
     split = make_split(rows, seed)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(split, indent=1) + "\n")
+    write_text(path, json.dumps(split, indent=1) + "\n")
     return split
 
 
@@ -583,7 +584,7 @@ def write_model_card(data_dir: str | Path, out_dir: str | Path, split_path: str 
             raise DanceNetError(f"{out_dir / path.name} has no training metrics; retrain it with this version")
         trained[arch] = model
     card = out_dir / "STYLE_MODEL_CARD.md"
-    card.write_text(model_card(trained["conv"], trained["baseline"], split, rows))
+    write_text(card, model_card(trained["conv"], trained["baseline"], split, rows))
     return card
 
 

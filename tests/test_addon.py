@@ -610,3 +610,60 @@ blender_addon.unregister()
     assert run.returncode == 0, run.stderr
     assert "MISSING ['torch', 'scipy', 'madmom']" in run.stdout
     assert "REPORT Error: Missing Python packages: torch, scipy, madmom." in run.stdout
+
+
+# --- never lose a user's work (issue 16) ------------------------------------------------------------
+
+
+def test_generate_keeps_the_users_own_action_and_says_so(scene, addon, song, tmp_path):
+    rig = addon.rig.create_rig(bpy.context, "My Rig", with_mesh=False)
+    rig.animation_data_create()
+    mine = bpy.data.actions.new("My Walk")
+    rig.animation_data.action = mine
+    rig.pose.bones["pelvis"].location = (0.0, 0.1, 0.0)
+    rig.pose.bones["pelvis"].keyframe_insert("location", frame=1)
+    assert not mine.use_fake_user
+    scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
+    scene.dancenet.target, scene.dancenet.armature = "EXISTING", rig
+    applied = addon.pipeline.generate_now(bpy.context, addon.pipeline.prepare(scene), make_fake_generator())
+    assert rig.animation_data.action.name != "My Walk"
+    assert "your action 'My Walk' was kept" in applied.summary()
+    blend = tmp_path / "saved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    assert "My Walk" in bpy.data.actions  # before: 0 users, gone after save and reopen
+    # a second Generate on the same rig replaces our take, and adds no note about it
+    scene = bpy.context.scene
+    applied = addon.pipeline.generate_now(bpy.context, addon.pipeline.prepare(scene), make_fake_generator())
+    assert "your action" not in applied.summary()
+
+
+def test_generate_removes_only_its_own_markers(scene, addon, song):
+    scene.timeline_markers.new("bar 2", frame=13)  # the user's, named like ours
+    scene.timeline_markers.new("chorus", frame=30)
+    assert generate(scene, song, seed=1) == {"FINISHED"}
+    assert generate(scene, song, seed=2) == {"FINISHED"}
+    markers = sorted((m.name, m.frame) for m in scene.timeline_markers)
+    assert ("bar 2", 13) in markers and ("chorus", 30) in markers
+    assert markers.count(("bar 1", 1)) == 1  # ours replaced, not doubled
+
+
+def test_batch_gives_colliding_songs_their_own_folders_inside_out(addon, tmp_path, capsys):
+    from blender_addon import batch
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    songs = [write_song(tmp_path / "a" / "song.wav", 0.5), write_song(tmp_path / "b" / "song.wav", 0.5),
+             write_song(tmp_path / "...wav", 0.5)]
+    out = tmp_path / "nested" / "out"
+    (out / "song").mkdir(parents=True)
+    (out / "song" / "song.blend").write_bytes(b"the user's earlier result")
+    code = batch.main([*map(str, songs), "--out", str(out), "--bvh"], generator=make_fake_generator())
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith(("OK ", "FAILED "))]
+    assert code == 0 and len(lines) == 3, lines
+    assert (out / "song" / "song.blend").read_bytes() == b"the user's earlier result"
+    folders = sorted(p.name for p in out.iterdir())
+    assert folders == ["song", "song_2", "song_3", "song_4"], folders
+    assert {p.name for p in (out / "song_2").iterdir()} == {"song_2.blend", "song_2.bvh"}
+    assert sorted(p.name for p in (tmp_path / "nested").iterdir()) == ["out"]  # nothing written beside --out
+    assert f"-> {out / 'song_2'} " in lines[0] and f"-> {out / 'song_3'} " in lines[1]

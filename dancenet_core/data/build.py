@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 
+from ..atomic import atomic_open
 from ..bvh import read_bvh
 from ..errors import DanceNetError
 from ..motion import Motion
@@ -91,11 +92,10 @@ class PairedSequence:
     fit_p95_cm: float
 
     def save(self, path: Path) -> None:
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
-        np.savez_compressed(tmp, seq=self.seq, style=self.style, motion=self.motion, mirrored=self.mirrored,
-                            music=self.music, positions=self.positions, offsets=self.offsets,
-                            fit=np.array([self.fit_mean_cm, self.fit_p95_cm]))
-        os.replace(tmp, path)
+        with atomic_open(path, "wb") as f:
+            np.savez_compressed(f, seq=self.seq, style=self.style, motion=self.motion, mirrored=self.mirrored,
+                                music=self.music, positions=self.positions, offsets=self.offsets,
+                                fit=np.array([self.fit_mean_cm, self.fit_p95_cm]))
 
     @classmethod
     def load(cls, path: Path) -> PairedSequence:
