@@ -55,6 +55,8 @@ def load_file(path: str | Path) -> BoneMap:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise DanceNetError(f"Cannot read bone map {path}: {e.strerror or e}") from e
+    except UnicodeDecodeError as e:
+        raise DanceNetError(f"Bone map {path.name} is not UTF-8 text (byte {e.start}): save it as UTF-8 JSON") from e
     return parse(text, path.name)
 
 

@@ -77,6 +77,12 @@ def load_audio(path: str | Path, sample_rate: int = MADMOM_SAMPLE_RATE) -> Audio
         ) from e
     if len(mono) == 0:
         raise DanceNetError(f"audio file has no samples: {path}; export or download it again")
+    bad = int(np.count_nonzero(~np.isfinite(mono)))
+    if bad:
+        raise DanceNetError(
+            f"{path.name} holds {bad} samples that are not numbers (NaN or infinity): the file is damaged; "
+            f"export it again or convert it with e.g. `ffmpeg -i {path.name} song.wav`"
+        )
     samples = resample(mono, source_rate, sample_rate)
     audio = Audio(samples, sample_rate, source_rate, channels, path)
     if audio.duration_s < MIN_DURATION_S:

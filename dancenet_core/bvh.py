@@ -36,6 +36,11 @@ _FRAMES_RE = re.compile(r"Frames:\s*(\S+)\s*$", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"Frame\s+Time:\s*(\S+)\s*$", re.IGNORECASE)
 
 
+# Deeper hierarchies are not skeletons (a human chain is ~10 deep); reading and writing them recursively would
+# exhaust Python's stack.
+MAX_DEPTH = 200
+
+
 class BvhParseError(DanceNetError):
     """A BVH file that cannot be read; the message is `file:line: what was expected, got what`."""
 
@@ -253,7 +258,7 @@ class _HierarchyParser:
         self.expect(["HIERARCHY"], "'HIERARCHY'")
         line, words = self.next("'ROOT'")
         while words[0] == "ROOT":
-            self.joint(-1, line, words)
+            self.joint(-1, line, words, 0)
             line, words = self.next("'ROOT' or 'MOTION'")
         if words != ["MOTION"] or not self.names:
             raise self.error(line, "'ROOT' or 'MOTION'" if self.names else "'ROOT'")
@@ -286,7 +291,9 @@ class _HierarchyParser:
             chans.append(c)
         return tuple(chans)
 
-    def joint(self, parent: int, line: int, words: list[str]) -> None:
+    def joint(self, parent: int, line: int, words: list[str], depth: int) -> None:
+        if depth > MAX_DEPTH:
+            raise BvhParseError(self.path, line, f"joints nested more than {MAX_DEPTH} deep: not a skeleton")
         name = " ".join(words[1:])
         if not name:
             raise self.error(line, f"'{words[0]}' followed by a joint name")
@@ -301,7 +308,7 @@ class _HierarchyParser:
         while True:
             line, words = self.next("'JOINT', 'End Site' or '}'")
             if words[0] == "JOINT":
-                self.joint(j, line, words)
+                self.joint(j, line, words, depth + 1)
             elif words == ["End", "Site"]:
                 self.expect(["{"], "'{'")
                 offset = self.offset()
@@ -335,7 +342,7 @@ def _header_number(
         value = kind(m.group(1)) if m else 0
     except ValueError:
         value = 0
-    if not value > 0:
+    if not 0 < value < float("inf"):
         raise BvhParseError(path, i + 1, f"expected {what}, got '{text[:80]}'")
     return value
 
@@ -413,6 +420,10 @@ def read_bvh(path: str | Path) -> BvhData:
         values = None
     if values is None or values.shape != (frames, ncols):
         _motion_error(path, data, i + 1, frames, ncols)
+    if not np.isfinite(values).all():
+        row = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        line = i + 1 + [k for k, text in enumerate(data) if text.strip()][row]
+        raise BvhParseError(path, line, "expected finite numbers, got NaN or infinity")
     return BvhData(
         names=tuple(parser.names),
         parents=tuple(parser.parents),

@@ -24,6 +24,7 @@ import multiprocessing as mp
 import os
 import sys
 import warnings
+import zipfile
 from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ import numpy as np
 
 from .atomic import atomic_open
 from .audio import MADMOM_SAMPLE_RATE, Audio, load_audio
+from .errors import DanceNetError, first_line
 
 FEATURE_VERSION = "music-features-1"  # change whenever any computation below changes
 FPS = 10
@@ -73,8 +75,19 @@ class MusicAnalysis:
     def num_frames(self) -> int:
         return int(self.features.shape[0])
 
+    def check(self) -> None:
+        """ValueError unless every array has its shape and every number is finite: what the cache may hold."""
+        f = self.features
+        if f.ndim != 2 or f.shape[1] != N_FEATURES or (self.mel is not None and len(self.mel) != len(f)):
+            raise ValueError(f"features of shape {f.shape}, expected [T, {N_FEATURES}]")
+        arrays = (f, self.beat_times, self.downbeat_times, *(() if self.mel is None else (self.mel,)))
+        if not all(np.isfinite(a).all() for a in arrays) or not np.isfinite([self.tempo_bpm, self.duration_s]).all():
+            raise ValueError("the analysis holds values that are not finite")
+
     def save(self, path: str | Path) -> None:
-        """Write an .npz (no pickles), atomically so a killed run never leaves half a cache entry."""
+        """Write an .npz (no pickles), atomically so a killed run never leaves half a cache entry, and two
+        processes writing the same entry leave one whole copy; refuses a result that is not finite."""
+        self.check()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {
@@ -99,19 +112,25 @@ class MusicAnalysis:
 
     @classmethod
     def load(cls, path: str | Path) -> MusicAnalysis:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            if meta.get("version") != FEATURE_VERSION:
-                raise ValueError(f"{path} holds features of version {meta.get('version')}")
-            return cls(
-                features=z["features"],
-                beat_times=z["beat_times"],
-                downbeat_times=z["downbeat_times"],
-                tempo_bpm=float(meta["tempo_bpm"]),
-                duration_s=float(meta["duration_s"]),
-                fps=int(meta["fps"]),
-                mel=z["mel"] if "mel" in z.files else None,
-            )
+        """Read an entry written by `save`; ValueError for anything else (truncated, empty, stale, damaged)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                if meta.get("version") != FEATURE_VERSION:
+                    raise ValueError(f"features of version {meta.get('version')}")
+                result = cls(
+                    features=z["features"],
+                    beat_times=z["beat_times"],
+                    downbeat_times=z["downbeat_times"],
+                    tempo_bpm=float(meta["tempo_bpm"]),
+                    duration_s=float(meta["duration_s"]),
+                    fps=int(meta["fps"]),
+                    mel=z["mel"] if "mel" in z.files else None,
+                )
+        except (OSError, EOFError, KeyError, TypeError, AttributeError, zipfile.BadZipFile) as e:
+            raise ValueError(first_line(e)) from e
+        result.check()
+        return result
 
 
 def default_cache_dir() -> Path:
@@ -163,8 +182,10 @@ def analyze_music(
         if entry.is_file():
             try:
                 result = MusicAnalysis.load(entry)
-            except (OSError, ValueError, KeyError):
-                result = None  # unreadable or stale entry: recompute and overwrite
+            except ValueError as e:  # truncated, damaged or stale: recompute and replace it
+                print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
+                      "analysing the song again", file=sys.stderr)
+                result = None
             if result is not None:
                 report(1.0)
                 return result if with_mel else _without_mel(result)
@@ -174,8 +195,8 @@ def analyze_music(
     if entry is not None:
         try:
             result.save(entry)
-        except OSError as e:
-            warnings.warn(f"could not write the feature cache {entry}: {e}", stacklevel=2)
+        except (DanceNetError, ValueError) as e:  # a full disk (or a damaged result) loses the cache entry only
+            warnings.warn(f"could not write the feature cache: {e}", stacklevel=2)
     return result if with_mel else _without_mel(result)
 
 
@@ -215,8 +236,17 @@ def _run_all(ex: Executor, fn: Callable, jobs: list[tuple], report: Progress) ->
     except BaseException:
         for fut in futures:
             fut.cancel()
+        _kill_workers(ex)
         raise
     return out
+
+
+def _kill_workers(ex: Executor) -> None:
+    """Stop a pool's worker processes now (Ctrl-C, SIGTERM, a failed block): a running block can take a
+    minute, the pool's exit would wait for it, and a worker whose parent died blocks forever. Python 3.11's
+    pool has no public call for this; `_processes` is its pid -> Process map."""
+    for proc in list((getattr(ex, "_processes", None) or {}).values()):
+        proc.kill()
 
 
 def _existing(path: str | Path) -> Path:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -122,7 +123,7 @@ class Motion:
                 else Skeleton(z["offsets"], names, parents, ends)
             )
             return cls(z["rotations"], z["root_positions"], float(z["fps"]), skeleton)
-        except (KeyError, ValueError, OSError) as e:
+        except (KeyError, ValueError, OSError, IndexError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise ValueError(
                 f"{path} is not a DanceNet motion file (.npz from `dancenet generate`): {e}"
             ) from e

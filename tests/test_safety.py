@@ -3,18 +3,29 @@ existing outputs are not overwritten silently, the cache heals itself, bad input
 
 from __future__ import annotations
 
+import errno
 import pickle
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+import soundfile as sf
 import torch
 
+from dancenet_core.bvh import write_bvh
 from dancenet_core.checkpoint import load_weights
+from dancenet_core.cli import main as cli_main
 from dancenet_core.errors import DanceNetError
 from dancenet_core.footfix import WEIGHTS as FOOTFIX_WEIGHTS
 from dancenet_core.footfix import FootFixer
 from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from dancenet_core.motion import Motion
 
 SHIPPED = sorted((Path(__file__).resolve().parents[1] / "dancenet_core" / "weights").glob("*.pt"))
 
@@ -93,3 +104,140 @@ def test_bundle_save_round_trip_is_plain_and_exact(tmp_path: Path) -> None:
     assert np.array_equal(again.normalizer.constant, shipped.normalizer.constant)
     assert np.array_equal(again.skeleton.offsets, shipped.skeleton.offsets)
     assert list(tmp_path.iterdir()) == [out]  # no temporary left behind
+
+
+# --- helpers ---------------------------------------------------------------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _wav(path: Path, seconds: float = 4.0, rate: int = 22050, subtype: str = "PCM_16") -> Path:
+    """A click track at 120 BPM over a quiet tone."""
+    t = np.arange(int(seconds * rate)) / rate
+    y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 0.5) < 0.01)
+    sf.write(path, y.astype(np.float32), rate, subtype=subtype)
+    return path
+
+
+def _cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str]:
+    code = cli_main(argv)
+    err = capsys.readouterr().err.strip()
+    return code, err
+
+
+def _small_motion(frames: int = 20) -> Motion:
+    rng = np.random.default_rng(0)
+    rot = 0.2 * rng.standard_normal((frames, 55, 3))
+    root = np.stack([np.zeros(frames), np.full(frames, 0.9), np.linspace(0, 1, frames)], -1)
+    return Motion(rot, root, 25.0)
+
+
+def _no_tmp_left(folder: Path) -> None:
+    assert not [p.name for p in folder.iterdir() if ".tmp" in p.name]
+
+
+# --- item 2: files are written whole or not at all -------------------------------------------------------------
+
+def _fail_half_way(real: Callable) -> Callable:
+    """`real` (np.savetxt or np.savez_compressed) that writes part of its output, then hits a full disk."""
+    def write(f: Any, *args: Any, **kwargs: Any) -> None:
+        f.write(b"PK\x03\x04 half" if "b" in getattr(f, "mode", "") else "1.0 2.0 3.0 half a li")
+        raise OSError(errno.ENOSPC, "No space left on device")
+    return write
+
+
+@pytest.mark.parametrize("kind", ["bvh", "npz"])
+def test_full_disk_leaves_the_old_file_and_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    kind: str) -> None:
+    target = tmp_path / f"song.{kind}"
+    target.write_bytes(b"the previous good file")
+    motion = _small_motion()
+    if kind == "bvh":
+        monkeypatch.setattr(np, "savetxt", _fail_half_way(np.savetxt))
+        with pytest.raises(DanceNetError) as e:
+            write_bvh(target, motion)
+    else:
+        monkeypatch.setattr(np, "savez_compressed", _fail_half_way(np.savez_compressed))
+        with pytest.raises(DanceNetError) as e:
+            motion.save(target)
+    assert "No space left on device" in one_line(e.value)
+    assert target.read_bytes() == b"the previous good file"
+    _no_tmp_left(tmp_path)
+
+
+def test_ctrl_c_while_writing_a_long_bvh_keeps_the_previous_file(tmp_path: Path) -> None:
+    target = tmp_path / "song.bvh"
+    write_bvh(target, _small_motion())
+    before = target.read_bytes()
+    code = (f"from tests.test_safety import _small_motion; from dancenet_core.bvh import write_bvh; "
+            f"write_bvh({str(target)!r}, _small_motion(60000))")
+    child = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not [p for p in tmp_path.iterdir() if ".tmp" in p.name]:
+        assert child.poll() is None and time.monotonic() < deadline, "the child never started writing"
+        time.sleep(0.02)
+    time.sleep(0.2)  # well into the frames
+    child.send_signal(signal.SIGINT)
+    assert child.wait(60) != 0
+    assert target.read_bytes() == before
+    _no_tmp_left(tmp_path)
+
+
+# --- items 3 and 9: no silent overwrite; arguments checked before any long work ---------------------------------
+
+@pytest.fixture
+def no_analysis(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if a command gets as far as analysing the music."""
+    import dancenet_core.features as features
+
+    def analyze(*_a: Any, **_k: Any) -> None:
+        raise AssertionError("analysis started")
+    monkeypatch.setattr(features, "analyze_music", analyze)
+
+
+def test_generate_refuses_to_replace_outputs_unless_asked(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                          no_analysis: None) -> None:
+    song, out = _wav(tmp_path / "song.wav"), tmp_path / "out"
+    out.mkdir()
+    (out / "song.json").write_text("mine")
+    code, err = _cli(["generate", str(song), "-o", str(out)], capsys)
+    assert code == 2 and "song.json already exists" in err and "--overwrite" in err and "\n" not in err
+    assert (out / "song.json").read_text() == "mine"
+    with pytest.raises(AssertionError, match="analysis started"):
+        cli_main(["generate", str(song), "-o", str(out), "--overwrite"])
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--seed", "-1"], "seed must be"),
+    (["--seed", str(2**40)], "seed must be"),
+    (["--temperature", "inf"], "temperature must be"),
+    (["--temperature", "nan"], "temperature must be"),
+    (["--temperature", "1e9"], "temperature must be"),
+    (["--temperature", "-0.5"], "temperature must be"),
+    (["--takes", "0"], "takes must be"),
+    (["--style", "polka"], "unknown style 'polka'"),
+    (["--weights", "RANDOM"], "cannot read the DanceNet weights"),
+    (["--weights", "EMPTY"], "cannot read the DanceNet weights"),
+    (["--weights", "PICKLE"], "cannot read the DanceNet weights"),
+    (["--weights", "MISSING"], "not found"),
+    (["-o", "UNDER_A_FILE"], "output folder"),
+    (["SONG_IS_A_FOLDER"], "is a folder, not an audio file"),
+])
+def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                    no_analysis: None, extra: list[str], message: str) -> None:
+    song, out = _wav(tmp_path / "song.wav"), tmp_path / "out"
+    (tmp_path / "a_file").write_text("x")
+    files = {"RANDOM": np.random.default_rng(1).bytes(1000), "EMPTY": b"", "PICKLE": pickle.dumps({"a": 1})}
+    for key, content in files.items():
+        (tmp_path / f"{key}.pt").write_bytes(content)
+    subst = {**{k: str(tmp_path / f"{k}.pt") for k in [*files, "MISSING"]},
+             "UNDER_A_FILE": str(tmp_path / "a_file" / "out")}
+    extra = [subst.get(a, a) for a in extra]
+    argv = ["generate", str(song), "-o", str(out), *extra]
+    if extra == ["SONG_IS_A_FOLDER"]:
+        argv = ["generate", str(tmp_path), "-o", str(out)]
+    t = time.perf_counter()
+    code, err = _cli(argv, capsys)
+    assert code == 2 and message in err, err
+    assert err.startswith("dancenet: error: ") and "\n" not in err and "Traceback" not in err
+    assert time.perf_counter() - t < 30
