@@ -27,9 +27,13 @@ MADMOM_SAMPLE_RATE = 44100
 MIN_DURATION_S = 3.0
 # Peak level under which a file counts as silent (-80 dBFS).
 SILENCE_PEAK = 1e-4
+# Sample rates a real recording has; a damaged header can claim any, and resampling from one far outside
+# this range would take hours.
+MIN_SAMPLE_RATE, MAX_SAMPLE_RATE = 4000, 384000
 SUPPORTED_FORMATS = ("wav", "flac", "ogg", "mp3", "opus")
 
 _DECODE_BLOCK = 1 << 20  # frames decoded per soundfile read
+_DECODE_PREALLOCATE = 1 << 25  # at most this many frames are allocated up front (the buffer grows past it)
 _RESAMPLE_BLOCK = 1 << 21  # input samples resampled per call (plus context)
 _RESAMPLE_CONTEXT = 4096  # input samples each side; the default FIR reaches ~10 samples
 
@@ -69,6 +73,11 @@ def load_audio(path: str | Path, sample_rate: int = MADMOM_SAMPLE_RATE) -> Audio
     try:
         with sf.SoundFile(str(path)) as f:
             source_rate, channels = int(f.samplerate), int(f.channels)
+            if not MIN_SAMPLE_RATE <= source_rate <= MAX_SAMPLE_RATE:
+                raise DanceNetError(
+                    f"{path.name} says its sample rate is {source_rate} Hz, which no song has (the file is "
+                    f"damaged?); export it again or convert it with e.g. `ffmpeg -i {path.name} song.wav`"
+                )
             mono = _decode_mono(f)
     except (sf.LibsndfileError, RuntimeError, TypeError) as e:
         raise DanceNetError(
@@ -118,10 +127,13 @@ def resample(samples: np.ndarray, source_rate: int, target_rate: int) -> np.ndar
 
 def _decode_mono(f: sf.SoundFile) -> np.ndarray:
     """Read every frame as float32 and average the channels, one block at a time."""
-    expected = max(int(f.frames), 0)
+    expected = min(max(int(f.frames), 0), _DECODE_PREALLOCATE)  # a damaged header can claim any count
     out = np.empty(expected, dtype=np.float32)
     n = 0
-    for block in f.blocks(blocksize=_DECODE_BLOCK, dtype="float32", always_2d=True):
+    while True:  # not f.blocks(): it pads up to the header's frame count, which a damaged file sets to billions
+        block = f.read(_DECODE_BLOCK, dtype="float32", always_2d=True)
+        if not len(block):
+            break
         mono = block.mean(axis=1, dtype=np.float32) if block.shape[1] > 1 else block[:, 0]
         if n + len(mono) > len(out):  # frame counts of compressed formats can be estimates
             out = np.concatenate([out[:n], np.empty(max(len(mono), len(out) // 4), np.float32)])

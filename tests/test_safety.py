@@ -3,7 +3,9 @@ existing outputs are not overwritten silently, the cache heals itself, bad input
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import os
 import pickle
 import signal
 import subprocess
@@ -241,3 +243,171 @@ def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pyte
     assert code == 2 and message in err, err
     assert err.startswith("dancenet: error: ") and "\n" not in err and "Traceback" not in err
     assert time.perf_counter() - t < 30
+
+
+# --- item 4: the cache heals itself ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "nan"])
+def test_damaged_cache_entry_is_recomputed_with_a_notice(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                         damage: str) -> None:
+    from dancenet_core.features import MusicAnalysis, analyze_music
+
+    song, cache = _wav(tmp_path / "song.wav"), tmp_path / "cache"
+    first = analyze_music(song, cache_dir=cache, workers=1)
+    (entry,) = cache.iterdir()
+    data = entry.read_bytes()
+    if damage == "nan":
+        bad = MusicAnalysis.load(entry)
+        bad.features[3, 2] = np.nan
+        np.savez(entry, features=bad.features, beat_times=bad.beat_times, downbeat_times=bad.downbeat_times,
+                 meta=np.load(entry)["meta"])
+    else:
+        entry.write_bytes({"truncated": data[: len(data) // 2], "empty": b"", "garbage": b"\x00garbage" * 50}[damage])
+    capsys.readouterr()
+    again = analyze_music(song, cache_dir=cache, workers=1)
+    notice = capsys.readouterr().err.strip()
+    assert notice.startswith("dancenet: the cached analysis") and "\n" not in notice, notice
+    assert np.array_equal(again.features, first.features)
+    assert np.array_equal(MusicAnalysis.load(entry).features, first.features)  # replaced by a good entry
+
+
+def _hammer(entry: str, n: int) -> None:
+    from dancenet_core.features import MusicAnalysis
+
+    rng = np.random.default_rng()
+    for _ in range(n):
+        MusicAnalysis(rng.random((2000, 15), dtype=np.float32), np.arange(10.0), np.arange(3.0), 120.0, 200.0,
+                      mel=rng.random((2000, 80), dtype=np.float32)).save(entry)
+
+
+def test_two_processes_writing_one_cache_entry_leave_it_whole(tmp_path: Path) -> None:
+    import multiprocessing as mp
+
+    from dancenet_core.features import MusicAnalysis
+
+    entry = tmp_path / "entry.npz"
+    _hammer(str(entry), 1)
+    ctx = mp.get_context("fork")
+    writers = [ctx.Process(target=_hammer, args=(str(entry), 40)) for _ in range(2)]
+    for w in writers:
+        w.start()
+    reads = 0
+    while any(w.is_alive() for w in writers):
+        assert MusicAnalysis.load(entry).features.shape == (2000, 15)
+        reads += 1
+    assert all(w.exitcode == 0 for w in writers) and reads > 0
+    assert [p.name for p in tmp_path.iterdir()] == ["entry.npz"]
+
+
+# --- item 5: signals stop the analysis workers ---------------------------------------------------------------
+
+def _children(pid: int) -> set[int]:
+    out = set()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError):
+            out |= {int(c) for c in (task / "children").read_text().split()}
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: signal.Signals) -> None:
+    song = _wav(tmp_path / "long.wav", seconds=150.0, rate=11025)
+    env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
+    child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "analyze", str(song), "--no-cache"],
+                             cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    workers: set[int] = set()
+    while len(workers) < 2:
+        assert child.poll() is None and time.monotonic() < deadline, "no workers started"
+        workers = _children(child.pid)
+        time.sleep(0.05)
+    time.sleep(0.5)
+    child.send_signal(sig)
+    code = child.wait(60)
+    err = child.stderr.read() if child.stderr else ""
+    assert code != 0 and "Traceback" not in err, err
+    deadline = time.monotonic() + 10
+    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [w for w in workers if _alive(w)]
+
+
+# --- item 7: non-finite audio is an error that says so, and nothing is cached -----------------------------------
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_audio_is_one_line_and_not_cached(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                      bad: float) -> None:
+    from dancenet_core.features import analyze_music
+
+    rate = 22050
+    y = 0.3 * np.sin(2 * np.pi * 220 * np.arange(5 * rate) / rate)
+    y[1000:1010] = bad
+    song = tmp_path / "damaged.wav"
+    sf.write(song, y.astype(np.float32), rate, subtype="FLOAT")
+    with pytest.raises(DanceNetError) as e:
+        analyze_music(song, cache_dir=tmp_path / "cache", workers=1)
+    assert "not numbers (NaN or infinity)" in one_line(e.value)
+    assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
+    code, err = _cli(["generate", str(song), "-o", str(tmp_path / "out")], capsys)
+    assert code == 2 and "NaN or infinity" in err and "\n" not in err
+    assert not (tmp_path / "out" / "damaged.json").exists()
+
+
+# --- item 8: one line, never a traceback ----------------------------------------------------------------------
+
+def _bvh_text(frames: int = 3) -> str:
+    rows = "\n".join(" ".join(["0.0"] * 12) for _ in range(frames))
+    return ("HIERARCHY\nROOT hips\n{\n\tOFFSET 0 0 0\n\tCHANNELS 6 Xposition Yposition Zposition Zrotation "
+            "Xrotation Yrotation\n\tJOINT knee\n\t{\n\t\tOFFSET 0 -0.4 0\n\t\tCHANNELS 3 Zrotation Xrotation "
+            "Yrotation\n\t\tJOINT foot\n\t\t{\n\t\t\tOFFSET 0 -0.4 0\n\t\t\tCHANNELS 3 Zrotation Xrotation "
+            "Yrotation\n\t\t\tEnd Site\n\t\t\t{\n\t\t\t\tOFFSET 0 0 0.1\n\t\t\t}\n\t\t}\n\t}\n}\n"
+            f"MOTION\nFrames: {frames}\nFrame Time: 0.04\n{rows}\n")
+
+
+def _deep_bvh(depth: int) -> str:
+    opens = "".join(f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" for k in range(depth))
+    return ("HIERARCHY\nROOT r\n{\nOFFSET 0 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" + opens
+            + "}\n" * (depth + 1) + f"MOTION\nFrames: 1\nFrame Time: 0.04\n{' '.join(['0'] * 3 * (depth + 1))}\n")
+
+
+@pytest.mark.parametrize("case", ["nan-values", "inf-frame-time", "npy-as-npz", "deep-bvh"])
+def test_bad_motion_files_given_to_render_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                       case: str) -> None:
+    path = tmp_path / ("motion.npz" if case == "npy-as-npz" else "motion.bvh")
+    if case == "nan-values":
+        text = _bvh_text().splitlines()
+        text[-2] = " ".join(["0.0"] * 5 + ["nan"] + ["0.0"] * 6)
+        path.write_text("\n".join(text) + "\n")
+    elif case == "inf-frame-time":
+        path.write_text(_bvh_text().replace("Frame Time: 0.04", "Frame Time: inf"))
+    elif case == "npy-as-npz":
+        np.save(tmp_path / "m.npy", np.zeros((10, 3)))
+        (tmp_path / "m.npy").rename(path)
+    else:
+        path.write_text(_deep_bvh(5000))
+    code, err = _cli(["render", str(path), "--sheet", str(tmp_path / "sheet.png")], capsys)
+    assert code == 2 and err.startswith("dancenet: error: ") and "\n" not in err, err
+    assert not (tmp_path / "sheet.png").exists()
+
+
+def test_bone_map_that_is_not_utf8_is_one_line(tmp_path: Path) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("bpy") is None:
+        pytest.skip("bpy not installed")
+    from blender_addon import bonemap
+
+    path = tmp_path / "map.json"
+    path.write_bytes(b'{"bones": {"pelvis": "Hips\xff\xfe"}}')
+    with pytest.raises(DanceNetError) as e:
+        bonemap.load_file(path)
+    assert "not UTF-8" in one_line(e.value)
