@@ -13,6 +13,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from dancenet_core.atomic import atomic_path
+
 CAMERA_NAME = "DanceNet Camera"
 FLOOR_NAME = "DanceNet Floor"
 _LENS_MM = 35.0
@@ -81,7 +83,20 @@ def setup_preview(
 
 
 def render_preview(scene: bpy.types.Scene) -> Path:
-    """Render the scene's frame range to the output set by `setup_preview`; returns the video's path."""
-    with bpy.context.temp_override(scene=scene):
-        bpy.ops.render.render(animation=True, scene=scene.name)
-    return Path(bpy.path.abspath(scene.render.frame_path(frame=scene.frame_start)))
+    """Render the scene's frame range to the output set by `setup_preview`; returns the video's path.
+    The video is rendered under a temporary name and renamed into place, so an interrupted render never
+    leaves half a video where a good one was."""
+    render = scene.render
+    chosen = render.filepath
+    final = Path(bpy.path.abspath(render.frame_path(frame=scene.frame_start)))
+    try:
+        with atomic_path(final) as tmp:
+            render.filepath = str(tmp)
+            with bpy.context.temp_override(scene=scene):
+                bpy.ops.render.render(animation=True, scene=scene.name)
+            produced = Path(bpy.path.abspath(render.frame_path(frame=scene.frame_start)))
+            if produced != tmp:  # Blender added a frame range to the name
+                produced.replace(tmp)
+    finally:
+        render.filepath = chosen
+    return final

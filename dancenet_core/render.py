@@ -25,6 +25,7 @@ from typing import IO, TYPE_CHECKING, cast
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from .atomic import atomic_path
 from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
@@ -473,10 +474,8 @@ def render_frames(
 def _save_png(image: np.ndarray, path: Path) -> None:
     from PIL import Image
 
-    try:
-        Image.fromarray(image).save(path, compress_level=1)
-    except OSError as e:
-        raise DanceNetError(f"cannot write {path}: {e}") from e
+    with atomic_path(path) as tmp:  # a killed run never leaves half a PNG
+        Image.fromarray(image).save(tmp, compress_level=1)
 
 
 def _make_dir(folder: Path) -> None:
@@ -526,8 +525,9 @@ def contact_sheet(
     if out.parent != Path():
         _make_dir(out.parent)
     try:
-        sheet.save(out)
-    except (OSError, ValueError) as e:
+        with atomic_path(out) as tmp:
+            sheet.save(tmp)
+    except ValueError as e:
         raise DanceNetError(f"cannot write the contact sheet {out}: {e}") from e
     return out
 
