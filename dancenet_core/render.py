@@ -46,6 +46,9 @@ _FOLLOW_SIGMA_S = 0.6  # Gaussian low-pass of the root path the camera follows, 
 _FLOOR_MARGIN = 40.0  # floor beyond the dance's footprint, so its edge sits near the horizon
 _FLOOR_TILE = 1.0  # grid spacing
 _CHUNK = 256  # frames of forward kinematics at a time, so long dances stay small in memory
+_SMALL_RADIUS = 0.02  # parts thinner than this (m on a 1.70 m figure) are tessellated more coarsely
+_WORKER_CHUNK = 16  # frames a rendering worker draws per task
+_PARALLEL_MIN_FRAMES = 100  # below this, starting worker processes costs more than they save
 
 _FINGER_WORDS = ("thumb", "index", "middle", "ring", "pinky", "finger")
 _TORSO_WORDS = ("pelvis", "hip", "spine", "chest", "neck", "collar", "clavicle", "head")
@@ -252,21 +255,24 @@ class _Figure:
 
 def _build_figure(skeleton: Skeleton, unit: float) -> _Figure:
     """Capsules from each joint to its children (and to toe and palm end sites), spheres on the joints,
-    a bigger sphere for the head; left side blue, right side orange."""
+    a bigger sphere for the head; left side blue, right side orange. Parts thinner than _SMALL_RADIUS
+    (fingers, eyes: a pixel or two across in a preview, yet over half of the triangles) get fewer."""
     import trimesh
 
-    sphere = trimesh.creation.icosphere(subdivisions=2)
+    spheres = {small: trimesh.creation.icosphere(subdivisions=1 if small else 2) for small in (False, True)}
     parts: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, str]] = []
 
     def capsule(parent: int, offset: np.ndarray, radius: float, colour: str) -> None:
         length = float(np.linalg.norm(offset))
         if length > 1e-6 * unit:
-            mesh = trimesh.creation.capsule(height=length, radius=radius * unit, count=[12, 12])
+            count = [8, 8] if radius < _SMALL_RADIUS else [12, 12]
+            mesh = trimesh.creation.capsule(height=length, radius=radius * unit, count=count)
             align = _align_z(offset)
             parts.append((parent, mesh.vertices @ align.T + offset / 2, mesh.vertex_normals @ align.T,
                           mesh.faces, colour))
 
     def ball(joint: int, centre: np.ndarray, radius: float, colour: str) -> None:
+        sphere = spheres[radius < _SMALL_RADIUS]
         parts.append((joint, centre + sphere.vertices * radius * unit, sphere.vertex_normals, sphere.faces,
                       colour))
 
@@ -437,20 +443,29 @@ def iter_frames(
     width: int = 640,
     height: int = 360,
     cameras: Sequence[Camera] | None = None,
+    workers: int | None = None,
 ) -> Iterator[np.ndarray]:
-    """Rendered frames [H, W, 3] uint8, one at a time (all frames by default).
+    """Rendered frames [H, W, 3] uint8, one at a time and in order (all frames by default).
 
     `cameras` gives one camera per frame of the motion; by default `camera_path` (follows the dancer).
+    From _PARALLEL_MIN_FRAMES frames on, `workers` processes (default: $DANCENET_WORKERS, else up to 2;
+    1 inside Blender) draw chunks of frames side by side, each with its own OpenGL context.
     """
+    from .features import _default_workers
+
     _check_size(width, height)
     frames = np.arange(motion.num_frames) if frame_indices is None else np.asarray(frame_indices, dtype=int)
     if frames.size and (frames.min() < 0 or frames.max() >= motion.num_frames):
         raise DanceNetError(f"frame numbers must be in 0..{motion.num_frames - 1}")
     gl_platform()
     floor = floor_height(motion)
-    cams = camera_path(motion, width, height) if cameras is None else cameras
+    cams = camera_path(motion, width, height) if cameras is None else list(cameras)
     if len(cams) != motion.num_frames:
         raise ValueError(f"need one camera per frame ({motion.num_frames}), got {len(cams)}")
+    workers = _default_workers() if workers is None else workers
+    if workers > 1 and len(frames) >= _PARALLEL_MIN_FRAMES:
+        yield from _iter_parallel(motion, frames, width, height, floor, cams, workers)
+        return
     stage = _Stage(motion, width, height, floor)
     try:
         for chunk, pos, rot in _fk_chunks(motion, frames):
@@ -458,6 +473,52 @@ def iter_frames(
                 yield stage.render(pos[k], rot[k], cams[f])
     finally:
         stage.close()
+
+
+def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, floor: float,
+                   cams: list[Camera], workers: int) -> Iterator[np.ndarray]:
+    """Chunks of frames drawn by worker processes, yielded in order. At most two chunks a worker are in
+    flight, so memory stays bounded whatever the dance's length. Workers are forked (no start-up cost)
+    while this process holds no OpenGL state, else spawned: a forked copy of a live Mesa context hangs."""
+    import multiprocessing as mp
+    from collections import deque
+    from concurrent.futures import Future, ProcessPoolExecutor
+
+    chunks = [frames[i:i + _WORKER_CHUNK] for i in range(0, len(frames), _WORKER_CHUNK)]
+    pending: deque[Future] = deque()
+    method = "fork" if "OpenGL" not in sys.modules and "fork" in mp.get_all_start_methods() else "spawn"
+    with ProcessPoolExecutor(workers, mp_context=mp.get_context(method), initializer=_worker_start,
+                             initargs=(motion, width, height, floor, cams)) as pool:
+        try:
+            for chunk in chunks:
+                pending.append(pool.submit(_worker_draw, chunk))
+                if len(pending) >= 2 * workers:
+                    yield from pending.popleft().result()
+            while pending:
+                yield from pending.popleft().result()
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+
+_worker_state: dict = {}
+
+
+def _worker_start(motion: Motion, width: int, height: int, floor: float, cams: list[Camera]) -> None:
+    """Keep a rendering worker's dance; with Mesa's software rasteriser, one thread each (the workers
+    already fill the cores). The stage is built on the first chunk, so its errors reach the caller."""
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+    _worker_state.update(motion=motion, size=(width, height), floor=floor, cams=cams)
+
+
+def _worker_draw(chunk: np.ndarray) -> np.ndarray:
+    """Frames [n, H, W, 3] of one chunk of frame numbers."""
+    st = _worker_state
+    if "stage" not in st:
+        st["stage"] = _Stage(st["motion"], *st["size"], st["floor"])
+    motion = st["motion"]
+    pos, rot = fk_numpy(motion.skeleton, motion.rotations[chunk], motion.root_positions[chunk])
+    return np.stack([st["stage"].render(pos[k], rot[k], st["cams"][f]) for k, f in enumerate(chunk)])
 
 
 def render_frames(

@@ -155,3 +155,20 @@ def test_cli_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
         err = capsys.readouterr().err
         assert err.startswith("dancenet: error: ") and err.count("\n") == 1, err
     assert not Path(out).exists()
+
+
+def test_worker_processes_draw_the_same_frames() -> None:
+    """Two worker processes, each with its own OpenGL context, give the frames one process draws, in
+    order (a dance long enough for the parallel path, drawn small to stay quick)."""
+    from dancenet_core import render
+
+    n = render._PARALLEL_MIN_FRAMES + 7  # a last chunk shorter than the others
+    rot = np.zeros((n, DEFAULT_SKELETON.num_joints, 3))
+    rot[:, JOINT_INDEX["left_shoulder"], 2] = np.linspace(0.0, np.pi / 2, n)
+    root = ROOT + np.linspace(0.0, 1.0, n)[:, None] * [1.0, 0.0, 0.0]
+    motion = Motion(rot, root, 25.0)
+    one = list(render.iter_frames(motion, None, 64, 36, workers=1))
+    two = list(render.iter_frames(motion, None, 64, 36, workers=2))
+    assert len(two) == n
+    assert max(_differs(a, b) for a, b in zip(one, two, strict=True)) == 0
+    assert _differs(two[0], two[-1]) > 50  # the frames really differ along the dance
