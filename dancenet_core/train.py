@@ -248,13 +248,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-every", type=int, default=200)
     p.add_argument("--resume", action="store_true")
     p.add_argument("--snapshot-every", type=int, default=0, help="keep the weights every N steps (0: never)")
-    p.add_argument("--residual-output", action=argparse.BooleanOptionalAction, default=True,
-                   help="predict each frame as a change from the last one (default) or outright (first release)")
+    p.add_argument("--residual-output", action=argparse.BooleanOptionalAction, default=False,
+                   help="predict each frame as a change from the last one instead of outright: far better one step "
+                        "ahead, but free-running dances drift away (docs/training.md); off by default")
     p.add_argument("--mixtures", type=int, default=8, help="Gaussian mixture components (DanceNet variants)")
-    p.add_argument("--input-noise", type=float, default=0.2,
-                   help="Gaussian noise on the normalised input frames (the authors: 0.04). A model that predicts "
-                        "changes learns from it to pull a drifting dance back; with 0.04 its free-running dances "
-                        "ran away (root speed 2.6-12 m/s)")
+    p.add_argument("--input-noise", type=float, default=0.04,
+                   help="Gaussian noise on the normalised input frames (the authors' 0.04)")
     p.add_argument("--input-dropout", type=float, default=0.1,
                    help="share of input channels zeroed in training (the authors: 0.4; it hides the previous "
                         "frame's root velocity so often that the model learns to shuffle: see the model card)")
