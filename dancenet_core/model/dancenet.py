@@ -40,7 +40,8 @@ class DanceNetConfig:
     # Each component's mean is predicted as a change from the input frame (True) or outright (False, the
     # first release). A 64-channel residual stack cannot carry all 183 channels of the current frame to its
     # output: the first model's root deltas came out at half the dancer's speed (R^2 0.42 where copying the
-    # previous frame scores 0.97). Predicting the change passes the frame through and learns what moves.
+    # previous frame scores 0.97). Predicting the change passes the frame through (R^2 0.97 from the start),
+    # but free-running such a model drifts away within seconds (docs/training.md): an option, off by default.
     residual_output: bool = False
     min_log_sigma: float = float(np.log(0.03))
     dropout_music: float = 0.1
