@@ -1,7 +1,10 @@
-"""Music analysis speed: seconds per minute of audio, cold (empty cache) and cached, and peak memory.
+"""Music analysis speed: seconds per minute of audio, cold (empty cache) and cached, and peak memory; and,
+in the same run, the cold analysis with madmom's own onset and downbeat processors (the path before the
+compiled networks) for the speed-up ratio.
 
-Usage: `python bench/analysis.py [--song PATH] [--synthetic-minutes M] [--workers N]`. Without --song it
-takes DANCE_W_1 from $DANCENET_DATA (default <repo>/../shared/data), else a synthetic song. Prints JSON.
+Usage: `python bench/analysis.py [--song PATH] [--synthetic-minutes M] [--workers N] [--no-baseline]`.
+Without --song it takes DANCE_W_1 from $DANCENET_DATA (default <repo>/../shared/data), else a synthetic
+song. Prints JSON.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import soundfile as sf
 
+from dancenet_core import features
 from dancenet_core.audio import MADMOM_SAMPLE_RATE
 from dancenet_core.features import analyze_music
 
@@ -39,11 +43,25 @@ def synthetic_song(path: Path, minutes: float) -> Path:
     return path
 
 
+def madmom_processors() -> tuple:
+    """The analysis' processors with madmom's own RNNOnsetProcessor and RNNDownBeatProcessor in place of
+    the compiled pair: what the analysis ran before."""
+    from madmom.features.downbeats import RNNDownBeatProcessor
+    from madmom.features.onsets import RNNOnsetProcessor
+
+    onset, beat = RNNOnsetProcessor(), RNNDownBeatProcessor()
+    return (lambda sig: (onset(sig), beat(sig)), *compiled_processors()[1:])
+
+
+compiled_processors = features._processors
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--song", help="audio file to analyse")
     parser.add_argument("--synthetic-minutes", type=float, help="analyse a synthetic song this long instead")
     parser.add_argument("--workers", type=int, help="worker processes (default: up to 2)")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the run with madmom's processors")
     args = parser.parse_args()
     data = Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data"))
     with tempfile.TemporaryDirectory() as tmp:
@@ -62,6 +80,15 @@ def main() -> int:
         t0 = time.perf_counter()
         analyze_music(song, cache_dir=cache, workers=args.workers)
         warm = time.perf_counter() - t0
+        baseline = None
+        if not args.no_baseline:
+            features._processors = madmom_processors  # forked workers inherit it
+            t0 = time.perf_counter()
+            b = analyze_music(song, use_cache=False, workers=args.workers)
+            baseline = time.perf_counter() - t0
+            features._processors = compiled_processors
+            beats_same = len(b.beat_times) == len(a.beat_times) and bool(np.allclose(b.beat_times, a.beat_times))
+            max_feature_diff = float(np.abs(b.features - a.features).max())
     minutes = a.duration_s / 60
     rss = {
         who: resource.getrusage(r).ru_maxrss / 1024
@@ -81,6 +108,16 @@ def main() -> int:
                 "cold_s_per_audio_min": round(cold / minutes, 2),
                 "cached_s_per_audio_min": round(warm / minutes, 5),
                 "cold_over_cached": round(cold / warm, 1),
+                **(
+                    {}
+                    if baseline is None
+                    else {
+                        "madmom_processors_cold_s_per_audio_min": round(baseline / minutes, 2),
+                        "speedup_over_madmom_processors": round(baseline / cold, 2),
+                        "beats_same_as_madmom_processors": beats_same,
+                        "max_feature_diff_vs_madmom_processors": round(max_feature_diff, 6),
+                    }
+                ),
                 "peak_rss_mib": {k: round(v) for k, v in rss.items()},
                 "workers": args.workers or min(2, os.cpu_count() or 1),
                 "cpu": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",

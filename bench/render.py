@@ -1,13 +1,16 @@
 """Preview rendering speed: pyrender (what `dancenet render` uses) vs Blender's Workbench engine.
 
-Usage: `python bench/render.py [--frames 120] [--width 640] [--height 360] [--engine all]`. Prints JSON.
+Usage: `python bench/render.py [--frames 200] [--width 640] [--height 360] [--engine all]`. Prints JSON.
 
 The same synthetic 55-joint dance is drawn by both. pyrender: frames per second through `iter_frames`
 (forward kinematics, drawing, read-back), and through `render_motion` (the same plus H.264 encoding in
 ffmpeg). Blender (only when `bpy` imports): the add-on's armature and mannequin mesh keyed with the dance,
 a floor and a fixed camera, Workbench with FXAA and shadows, one `render(write_still=True)` per frame.
 Each engine runs in its own child process, so their OpenGL contexts and start-up costs stay apart;
-the first frame (context, shader compiles) is timed on its own as `first_frame_s`.
+the first frame (context, shader compiles; with worker processes, their start and first chunk) is timed
+on its own as `first_frame_s`. `--engine pyrender` also runs, in the same run and its own process, the
+renderer as it was before issue 17 (read from git at BEFORE_COMMIT) under `before`, with the speed-ups;
+`video_frames_per_s` (drawing, encoding, the mp4 written) is the figure to compare.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -44,8 +48,25 @@ def synthetic_dance(frames: int, fps: float = 30.0) -> Motion:
     return Motion(rot, root, fps)
 
 
-def bench_pyrender(frames: int, width: int, height: int) -> dict[str, object]:
-    from dancenet_core.render import gl_platform, iter_frames, render_motion
+BEFORE_COMMIT = "d4eea3c"  # dancenet_core/render.py as it was before issue 17 (one process, finer fingers)
+
+
+def render_before() -> ModuleType:
+    """The renderer as of BEFORE_COMMIT, read from git and loaded as a module of dancenet_core."""
+    src = subprocess.run(["git", "-C", str(REPO), "show", f"{BEFORE_COMMIT}:dancenet_core/render.py"],
+                         capture_output=True, text=True, check=True).stdout
+    module = ModuleType("dancenet_core._render_before")
+    module.__package__ = "dancenet_core"
+    sys.modules[module.__name__] = module  # dataclasses look their module up there
+    exec(compile(src, f"{BEFORE_COMMIT}:dancenet_core/render.py", "exec"), module.__dict__)
+    return module
+
+
+def bench_pyrender(frames: int, width: int, height: int, before: bool = False) -> dict[str, object]:
+    import dancenet_core.render
+
+    renderer = render_before() if before else dancenet_core.render
+    gl_platform, iter_frames, render_motion = renderer.gl_platform, renderer.iter_frames, renderer.render_motion
 
     motion = synthetic_dance(frames + 1)
     t = time.perf_counter()
@@ -128,13 +149,20 @@ def _child(engine: str, args: argparse.Namespace) -> dict[str, object]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=120)
+    parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=360)
-    parser.add_argument("--engine", choices=["all", "pyrender", "blender"], default="all")
+    parser.add_argument("--engine", choices=["all", "pyrender", "pyrender-before", "blender"], default="all")
     args = parser.parse_args()
     if args.engine == "pyrender":
         result: dict[str, object] = bench_pyrender(args.frames, args.width, args.height)
+        before = _child("pyrender-before", args)  # same run, its own process: the ratio is fair
+        result["before"] = before
+        if "error" not in before:
+            result["speedup_frames"] = round(result["frames_per_s"] / before["frames_per_s"], 2)  # type: ignore[operator]
+            result["speedup_video"] = round(result["video_frames_per_s"] / before["video_frames_per_s"], 2)  # type: ignore[operator]
+    elif args.engine == "pyrender-before":
+        result = bench_pyrender(args.frames, args.width, args.height, before=True) | {"commit": BEFORE_COMMIT}
     elif args.engine == "blender":
         # Blender prints a line per saved frame on fd 1: keep stdout for the JSON alone
         stdout = os.dup(1)
