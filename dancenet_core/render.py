@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import os
 import shutil
 import subprocess
@@ -46,7 +47,7 @@ _FOLLOW_SIGMA_S = 0.6  # Gaussian low-pass of the root path the camera follows, 
 _FLOOR_MARGIN = 40.0  # floor beyond the dance's footprint, so its edge sits near the horizon
 _FLOOR_TILE = 1.0  # grid spacing
 _CHUNK = 256  # frames of forward kinematics at a time, so long dances stay small in memory
-_SMALL_RADIUS = 0.02  # parts thinner than this (m on a 1.70 m figure) are tessellated more coarsely
+_LOD_TOLERANCE_PX = 0.5  # the most a part's facets may stray from its true outline, in pixels
 _WORKER_CHUNK = 16  # frames a rendering worker draws per task
 _PARALLEL_MIN_FRAMES = 100  # below this, starting worker processes costs more than they save
 
@@ -253,28 +254,42 @@ class _Figure:
         return vertices.astype(np.float32), np.einsum("vij,vj->vi", r, self.normals).astype(np.float32)
 
 
-def _build_figure(skeleton: Skeleton, unit: float) -> _Figure:
+def _segments(radius_px: float) -> int:
+    """Segments around a circle this many pixels in radius whose chords stay within _LOD_TOLERANCE_PX
+    of it (even, 4 to 24)."""
+    if radius_px <= _LOD_TOLERANCE_PX:
+        return 4
+    n = math.ceil(math.pi / math.acos(1.0 - _LOD_TOLERANCE_PX / radius_px))
+    return min(max(n + n % 2, 4), 24)
+
+
+def _build_figure(skeleton: Skeleton, unit: float, px_per_m: float) -> _Figure:
     """Capsules from each joint to its children (and to toe and palm end sites), spheres on the joints,
-    a bigger sphere for the head; left side blue, right side orange. Parts thinner than _SMALL_RADIUS
-    (fingers, eyes: a pixel or two across in a preview, yet over half of the triangles) get fewer."""
+    a bigger sphere for the head; left side blue, right side orange. Each part is tessellated only as
+    finely as its size on screen needs (`px_per_m`, pixels per metre of a 1.70 m figure): llvmpipe's cost
+    goes by triangles, and a finger a pixel across needs no 320-face sphere."""
     import trimesh
 
-    spheres = {small: trimesh.creation.icosphere(subdivisions=1 if small else 2) for small in (False, True)}
+    @functools.cache
+    def sphere(subdivisions: int) -> trimesh.Trimesh:
+        return trimesh.creation.icosphere(subdivisions=subdivisions)
+
     parts: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, str]] = []
 
     def capsule(parent: int, offset: np.ndarray, radius: float, colour: str) -> None:
         length = float(np.linalg.norm(offset))
         if length > 1e-6 * unit:
-            count = [8, 8] if radius < _SMALL_RADIUS else [12, 12]
-            mesh = trimesh.creation.capsule(height=length, radius=radius * unit, count=count)
+            n = _segments(radius * px_per_m)
+            mesh = trimesh.creation.capsule(height=length, radius=radius * unit, count=[max(4, n // 2), n])
             align = _align_z(offset)
             parts.append((parent, mesh.vertices @ align.T + offset / 2, mesh.vertex_normals @ align.T,
                           mesh.faces, colour))
 
     def ball(joint: int, centre: np.ndarray, radius: float, colour: str) -> None:
-        sphere = spheres[radius < _SMALL_RADIUS]
-        parts.append((joint, centre + sphere.vertices * radius * unit, sphere.vertex_normals, sphere.faces,
-                      colour))
+        # an icosphere's edges span 63.4 degrees, halved by each subdivision: ~5.7 * 2^s segments around
+        s = next((s for s in range(3) if 5.7 * 2**s >= _segments(radius * px_per_m)), 3)
+        mesh = sphere(s)
+        parts.append((joint, centre + mesh.vertices * radius * unit, mesh.vertex_normals, mesh.faces, colour))
 
     for j, name in enumerate(skeleton.names):
         n = name.lower()
@@ -345,7 +360,9 @@ class _Stage:
         self.unit = unit = figure_scale(skel)
         self.scene = pyrender.Scene(bg_color=[*(c / 255 for c in BACKGROUND_RGB), 1.0],
                                     ambient_light=[0.32, 0.32, 0.34])
-        self.figure = _build_figure(skel, unit)
+        # pixels per metre (of a 1.70 m figure) at the follow camera's distance
+        px_per_m = height / (2 * np.tan(YFOV / 2) * float(np.linalg.norm(_CAMERA_OFFSET)))
+        self.figure = _build_figure(skel, unit, px_per_m)
         self.figure_material = pyrender.MetallicRoughnessMaterial(metallicFactor=0.0, roughnessFactor=0.55)
         self.nodes: dict[str, pyrender.Node] = {}
         self._add_floor(motion)
