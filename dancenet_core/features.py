@@ -207,6 +207,9 @@ def analyze_audio(audio: Audio, *, workers: int | None = None, progress: Progres
         raise ValueError(f"analyze_audio needs {MADMOM_SAMPLE_RATE} Hz audio")
     x, n = audio.samples, len(audio.samples)
     blocks = _blocks(n, BLOCK_S * MADMOM_SAMPLE_RATE, CONTEXT_S * MADMOM_SAMPLE_RATE)
+    from .madmom_nets import load_compiled
+
+    load_compiled()  # before the workers fork, so they inherit it
     with _executor(workers, len(blocks)) as ex:
         jobs = [(x[s0:s1], c0 - s0, c1 - s0, c1 == n) for s0, c0, c1, s1 in blocks]
         parts = _run_all(ex, _network_block, jobs, lambda f: report(0.9 * f))
