@@ -1,6 +1,6 @@
 """Preview rendering speed: pyrender (what `dancenet render` uses) vs Blender's Workbench engine.
 
-Usage: `python bench/render.py [--frames 200] [--width 640] [--height 360] [--engine all]`. Prints JSON.
+Usage: `python bench/render.py [--frames 500] [--width 640] [--height 360] [--engine all]`. Prints JSON.
 
 The same synthetic 55-joint dance is drawn by both. pyrender: frames per second through `iter_frames`
 (forward kinematics, drawing, read-back), and through `render_motion` (the same plus H.264 encoding in
@@ -149,7 +149,7 @@ def _child(engine: str, args: argparse.Namespace) -> dict[str, object]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=200)
+    parser.add_argument("--frames", type=int, default=500)
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=360)
     parser.add_argument("--engine", choices=["all", "pyrender", "pyrender-before", "blender"], default="all")
