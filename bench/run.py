@@ -4,7 +4,8 @@ honest peak memory); speeds are ratios measured in the same run, because this ma
 
     .venv/bin/python bench/run.py [--quick]     (or: make bench)
 
---quick analyses a 1-minute song instead of a real 3.6-minute one and skips the 10-minute memory run.
+--quick analyses a 1-minute song instead of a real 3.6-minute one and skips the 10-minute memory run and
+the demo.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def bench(script: str, *args: str, env: dict[str, str] | None = None) -> dict:
 
 
 def summary(d: dict) -> dict:
-    """The figures issue #9 asks for, picked out of the benchmarks' outputs (None where one failed)."""
+    """The figures issues #9 and #17 ask for, picked out of the benchmarks' outputs (None where one failed)."""
 
     def pick(name: str, *path: str) -> object:
         node: object = d.get(name, {})
@@ -50,6 +51,8 @@ def summary(d: dict) -> dict:
         "analysis_cold_s_per_audio_min": pick("analysis", "cold_s_per_audio_min"),
         "analysis_cached_s_per_audio_min": pick("analysis", "cached_s_per_audio_min"),
         "analysis_cold_over_cached": pick("analysis", "cold_over_cached"),
+        "analysis_madmom_processors_cold_s_per_audio_min": pick("analysis", "madmom_processors_cold_s_per_audio_min"),
+        "analysis_speedup_over_madmom_processors": pick("analysis", "speedup_over_madmom_processors"),
         "generation_cached_fps": pick("generation", "sampler", "cached_fps"),
         "generation_naive_fps": pick("generation", "sampler", "naive_fps"),
         "generation_cached_over_naive": pick("generation", "sampler", "cached_over_naive"),
@@ -61,6 +64,14 @@ def summary(d: dict) -> dict:
         "keyframes_speedup_over_keyframe_insert": pick("keyframes", "speedup_write"),
         "pyrender_fps": pyrender.get("frames_per_s"),
         "pyrender_to_mp4_fps": pyrender.get("video_frames_per_s"),
+        "pyrender_before_fps": pick("render", "before", "frames_per_s"),
+        "pyrender_before_to_mp4_fps": pick("render", "before", "video_frames_per_s"),
+        "pyrender_speedup_to_mp4": pyrender.get("speedup_video"),
+        "generate_3min_song_cold_wall_s": pick("end_to_end", "three_minute_song", "cold", "wall_s"),
+        "generate_3min_song_cold_stages_s": pick("end_to_end", "three_minute_song", "cold", "stages_s"),
+        "generate_3min_song_cached_wall_s": pick("end_to_end", "three_minute_song", "cached", "wall_s"),
+        "generate_3min_song_cached_stages_s": pick("end_to_end", "three_minute_song", "cached", "stages_s"),
+        "demo_wall_s_after_setup": pick("end_to_end", "demo", "wall_s"),
         "peak_rss_mb_ten_minute_song": pick("generation", "ten_minute_song", "peak_rss_mb"),
         "peak_rss_mib_analysis": pick("analysis", "peak_rss_mib"),
     }
@@ -82,6 +93,7 @@ def main() -> int:
                                 env={"DANCENET_CACHE": f"{scratch}/cache-generation"}),
             "keyframes": bench("keyframes.py", env=blender_home),
             "render": bench("render.py", "--engine", "pyrender"),
+            "end_to_end": bench("end_to_end.py", *(["--skip-demo"] if args.quick else [])),
         }
     result = {"summary": summary(details), "details": details, "wall_s": round(time.perf_counter() - t, 1),
               "cpu_count": os.cpu_count(), "load_average": [round(x, 2) for x in os.getloadavg()]}
