@@ -8,8 +8,8 @@ go through one numba loop (hand-written because no maintained library runs madmo
 numpy arrays without a torch-sized dependency). The weights are madmom's, read from the processors madmom
 loads from its own model files; its pre- and post-processing run unchanged.
 
-The loop runs in float64. Each network, fed the same input, gives madmom's output to rounding (1e-15
-against madmom's layers run in float64). The ensemble's averaged activations stay within 1e-4 of madmom's
+The loop runs in float64. Each network gives what madmom's own layers give when run in float64 (to 1e-9
+on a real song; madmom steps in float32). The ensemble's averaged activations stay within 1e-4 of madmom's
 float32 processors on real songs and click tracks, and madmom's DBN tracks the same beats from both
 (tests/test_madmom_nets.py). That is also the floor: one cell of the third downbeat network can integrate
 without bound on steady music, after which any two runs summing in another order (madmom's own float32
@@ -23,16 +23,21 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numba import njit
 
-_LSTM_GATES = 4  # input gate, forget gate, cell, output gate: madmom's order
+
+@njit(cache=True)
+def _tanh(x: float) -> float:  # pragma: no cover - compiled
+    """tanh through exp: 1.7x faster in the loop than libm's tanh, and within 4e-16 of it."""
+    return 1.0 - 2.0 / (np.exp(2.0 * x) + 1.0)
 
 
 @njit(cache=True)
-def _scan(pre: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray, c0: np.ndarray,
-          backward: np.ndarray, lstm: bool) -> np.ndarray:  # pragma: no cover - compiled
-    """Recurrences of C independent chains over T frames. pre [T, C, G*H] holds x @ W + b; rec [C, H, G*H];
-    peep [C, 3, H] (LSTM: input, forget, output gate); h0, c0 [C, H]; chains with backward[c] run from the
-    last frame, and their output is stored at the frame it belongs to (as madmom's BidirectionalLayer
-    returns it). G = 4 (madmom's LSTMLayer with peepholes) or 1 (its tanh RecurrentLayer)."""
+def _scan(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray,
+          c0: np.ndarray, backward: np.ndarray, lstm: bool) -> np.ndarray:  # pragma: no cover - compiled
+    """Recurrences of C independent chains over T frames. pre [T, C, G*H] holds x @ W, bias [C, G*H] b;
+    rec [C, H, G*H]; peep [C, 3, H] (LSTM: input, forget, output gate); h0, c0 [C, H]; chains with
+    backward[c] run from the last frame, and their output is stored at the frame it belongs to (as
+    madmom's BidirectionalLayer returns it). G = 4 (madmom's LSTMLayer with peepholes) or 1 (its tanh
+    RecurrentLayer)."""
     n_t, n_c, width = pre.shape
     n_h = h0.shape[1]
     out = np.empty((n_t, n_c, n_h), np.float64)
@@ -46,7 +51,7 @@ def _scan(pre: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray, c0
         for step in range(n_t):
             t = n_t - 1 - step if backward[c] else step
             for k in range(width):
-                g[k] = pre[t, c, k]
+                g[k] = pre[t, c, k] + bias[c, k]
             for i in range(n_h):
                 hi = h[i]
                 for k in range(width):
@@ -55,12 +60,12 @@ def _scan(pre: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray, c0
                 for j in range(n_h):
                     ig = 1.0 / (1.0 + np.exp(-(g[j] + s[j] * peep[c, 0, j])))
                     fg = 1.0 / (1.0 + np.exp(-(g[n_h + j] + s[j] * peep[c, 1, j])))
-                    s[j] = np.tanh(g[2 * n_h + j]) * ig + s[j] * fg
+                    s[j] = _tanh(g[2 * n_h + j]) * ig + s[j] * fg
                     og = 1.0 / (1.0 + np.exp(-(g[3 * n_h + j] + s[j] * peep[c, 2, j])))
-                    h[j] = np.tanh(s[j]) * og
+                    h[j] = _tanh(s[j]) * og
             else:
                 for j in range(n_h):
-                    h[j] = np.tanh(g[j])
+                    h[j] = _tanh(g[j])
             for j in range(n_h):
                 out[t, c, j] = h[j]
     return out
@@ -70,7 +75,7 @@ def load_compiled() -> None:
     """Load the compiled loop (numba's on-disk cache, or a compile) into this process, so that worker
     processes forked from it start with it instead of each loading it again (~0.5 s)."""
     one = np.zeros((1, 1), np.float64)
-    _scan(np.zeros((1, 1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 3, 1)), one, one, np.zeros(1, np.bool_), False)
+    _scan(np.zeros((1, 1, 1)), one, np.zeros((1, 1, 1)), np.zeros((1, 3, 1)), one, one, np.zeros(1, np.bool_), False)
 
 
 class _Recurrent:
@@ -123,12 +128,13 @@ class _Recurrent:
         n_c, n_in, width = self.weights.shape
         if x.ndim == 2:  # first depth: one product for every network, direction and gate
             w = self.weights.transpose(1, 0, 2).reshape(n_in, n_c * width)
-            pre = (x @ w).reshape(len(x), n_c, width) + self.bias
+            pre = (x @ w).reshape(len(x), n_c, width)
         else:  # later depths: each network reads its own previous depth, both directions from it
             w = self.weights.reshape(n_c // 2, 2, n_in, width).transpose(0, 2, 1, 3).reshape(n_c // 2, n_in, -1)
             pre = (x @ w).reshape(n_c // 2, x.shape[1], 2, width)  # [N, T, direction, G*H]
-            pre = pre.transpose(1, 0, 2, 3).reshape(x.shape[1], n_c, width) + self.bias
-        out = _scan(np.ascontiguousarray(pre), self.rec, self.peep, self.h0, self.c0, self.backward, self.lstm)
+            pre = pre.transpose(1, 0, 2, 3).reshape(x.shape[1], n_c, width)
+        pre = np.ascontiguousarray(pre)
+        out = _scan(pre, self.bias, self.rec, self.peep, self.h0, self.c0, self.backward, self.lstm)
         n_t, _, n_h = out.shape
         return out.reshape(n_t, n_c // 2, 2 * n_h).transpose(1, 0, 2)  # [N, T, fwd H | bwd H]
 
