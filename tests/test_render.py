@@ -172,3 +172,17 @@ def test_worker_processes_draw_the_same_frames() -> None:
     assert len(two) == n
     assert max(_differs(a, b) for a, b in zip(one, two, strict=True)) == 0
     assert _differs(two[0], two[-1]) > 50  # the frames really differ along the dance
+
+
+def test_tessellation_follows_size_on_screen() -> None:
+    """Segments around a part keep its facets within 0.5 px of the outline: 4 for a sub-pixel finger,
+    10 for a 7-px limb (chord gap 7 * (1 - cos(pi / 10)) = 0.34 px; 8 would leave 0.53), capped at 24."""
+    from dancenet_core import render
+
+    assert render._segments(0.3) == 4
+    assert render._segments(7.0) == 10
+    assert 7.0 * (1 - np.cos(np.pi / 8)) > 0.5 > 7.0 * (1 - np.cos(np.pi / 10))
+    assert render._segments(1e4) == 24
+    unit = render.figure_scale(DEFAULT_SKELETON)
+    small, large = (render._build_figure(DEFAULT_SKELETON, unit, ppm) for ppm in (60.0, 360.0))
+    assert len(small.faces) < len(large.faces) / 2
