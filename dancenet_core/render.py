@@ -496,7 +496,8 @@ def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, 
                    cams: list[Camera], workers: int) -> Iterator[np.ndarray]:
     """Chunks of frames drawn by worker processes, yielded in order. At most two chunks a worker are in
     flight, so memory stays bounded whatever the dance's length. Workers are forked (no start-up cost)
-    while this process holds no OpenGL state, else spawned: a forked copy of a live Mesa context hangs."""
+    while this process holds no OpenGL state, else spawned, since a forked copy of loaded Mesa state is not
+    safe to draw with (spawning needs the usual `if __name__ == "__main__"` guard in a calling script)."""
     import multiprocessing as mp
     from collections import deque
     from concurrent.futures import Future, ProcessPoolExecutor
