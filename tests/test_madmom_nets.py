@@ -43,9 +43,9 @@ def assert_same(x: np.ndarray) -> None:
 
 
 def test_synthetic_music_matches_madmom() -> None:
-    """4 s only: on these steady chords one cell of the third downbeat network integrates without bound
-    (its state passes 400 by 4.3 s), and from there two float64 runs that merely sum in another order
-    drift 1e-4 apart, as do madmom's own float32 and float64 runs (see the module docstring)."""
+    """4 s only: on these steady chords one cell of a downbeat network integrates without bound (its state
+    passes 400 by 4.3 s), and from there two float64 runs that merely sum in another order drift 1e-4
+    apart, as do madmom's own float32 and float64 runs (see dancenet_core/madmom_nets.py)."""
     assert_same(music(4.0, seed=5))
 
 
