@@ -80,6 +80,33 @@ def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
     model.load_state_dict(dst)
 
 
+@torch.no_grad()
+def with_own_predictions(model: torch.nn.Module, frames: torch.Tensor, music: torch.Tensor, style: torch.Tensor,
+                         share: float) -> torch.Tensor:
+    """`frames` [B, T, D] with a random `share` of frames 1.. replaced by the model's own one-step draws
+    (component by its weight, then its mean and half its spread; contacts by their logits).
+
+    Why: teacher forcing only ever shows the network real previous frames, so its first own mistakes at
+    generation are inputs it never saw, and a dance drifts or freezes (exposure bias). Trained on its own
+    draws against the real next frame, it learns to steer back (parallel scheduled sampling, one pass).
+    """
+    was_training = model.training
+    model.eval()
+    logits, mu, log_sigma, contacts = model.split(model(frames, music, style))
+    model.train(was_training)
+    comp = torch.distributions.Categorical(logits=logits).sample()[..., None, None]
+    d = mu.shape[-1]
+    pick = comp.expand(*comp.shape[:-2], 1, d)
+    mean = mu.gather(-2, pick)[..., 0, :]
+    sigma = log_sigma.gather(-2, pick)[..., 0, :].exp()
+    own = torch.cat([mean + 0.5 * sigma * torch.randn_like(mean), (contacts > 0).to(mean.dtype)], -1)
+    own[..., :d] *= model.modelled.to(own.dtype)  # constant channels stay at their (zero) value
+    mask = torch.rand(frames.shape[:2], device=frames.device)[..., None] < share
+    mixed = frames.clone()
+    mixed[:, 1:] = torch.where(mask[:, 1:], own, frames[:, 1:])
+    return mixed
+
+
 def _ddp() -> tuple[int, int]:
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world > 1 and not torch.distributed.is_initialized():
@@ -117,7 +144,8 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     norm = init.normalizer if init else Normalizer.fit(
         [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
     model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
-                        mixtures=args.mixtures, residual_output=args.residual_output)
+                        mixtures=args.mixtures, residual_output=args.residual_output,
+                        input_skip=args.input_skip)
     cfg = model.cfg
     if args.input_dropout is not None:
         cfg.input_dropout = args.input_dropout
@@ -186,9 +214,11 @@ def train(args: argparse.Namespace, pairs: list[PairedSequence] | None = None,
     while step < args.steps and elapsed < budget:
         b = train_windows.batch(rng, args.batch, input_noise=args.input_noise)
         noisy = torch.tensor(b.motion, device=device)
-        x = F.dropout(noisy, cfg.input_dropout, training=True)
         music = torch.tensor(b.music, device=device)
         style = torch.tensor(b.style, device=device)
+        if args.own_inputs > 0:
+            noisy = with_own_predictions(model, noisy, music, style, args.own_inputs)
+        x = F.dropout(noisy, cfg.input_dropout, training=True)
         # A residual output starts from the frame before dropout: dropout hides channels from the network,
         # not from the frame the change is added to (at generation that frame is whole).
         o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)
@@ -251,6 +281,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--residual-output", action=argparse.BooleanOptionalAction, default=False,
                    help="predict each frame as a change from the last one instead of outright: far better one step "
                         "ahead, but free-running dances drift away (docs/training.md); off by default")
+    p.add_argument("--own-inputs", type=float, default=0.0,
+                   help="share of input frames replaced by the model's own one-step draws (against exposure "
+                        "bias: the model learns to steer back from its own mistakes); costs one more forward pass")
+    p.add_argument("--input-skip", action=argparse.BooleanOptionalAction, default=False,
+                   help="a linear path from the input frame to the outputs beside the residual stack (starts at "
+                        "zero, so a warm start begins as its source): carries the root's steps, outputs stay absolute")
     p.add_argument("--mixtures", type=int, default=8, help="Gaussian mixture components (DanceNet variants)")
     p.add_argument("--input-noise", type=float, default=0.04,
                    help="Gaussian noise on the normalised input frames (the authors' 0.04)")

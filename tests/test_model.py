@@ -10,12 +10,15 @@ from dancenet_core.model.dancenet import DanceNet, DanceNetConfig, dancenet_loss
 from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning, naive_run
 
 
-def _model(mixtures: int = 2, residual_output: bool = False) -> DanceNet:
+def _model(mixtures: int = 2, residual_output: bool = False, input_skip: bool = False) -> DanceNet:
     torch.manual_seed(0)
     cfg = DanceNetConfig(motion_dim=12, continuous_dim=10, styles=["a", "b"], mixtures=mixtures,
                          motion_channels=32, residual_channels=16, skip_channels=32, music_window=40,
-                         music_overlap=10, residual_output=residual_output)
+                         music_overlap=10, residual_output=residual_output, input_skip=input_skip)
     m = DanceNet(cfg)
+    if input_skip:  # trained weights, not the zeros it starts from
+        torch.nn.init.normal_(m.input_skip.weight, std=0.3)
+        torch.nn.init.normal_(m.input_skip.bias, std=0.3)
     m.eval()
     return m
 
@@ -64,10 +67,10 @@ def test_loss_is_finite_and_trains() -> None:
     assert np.isfinite(float(loss)) and float(loss) < first
 
 
-@pytest.mark.parametrize("residual_output", [False, True])
-def test_cached_generation_equals_full_forward(residual_output: bool) -> None:
+@pytest.mark.parametrize(("residual_output", "input_skip"), [(False, False), (True, False), (False, True)])
+def test_cached_generation_equals_full_forward(residual_output: bool, input_skip: bool) -> None:
     """Teacher-force the cached sampler with known frames: its outputs equal one full forward pass."""
-    m = _model(residual_output=residual_output)
+    m = _model(residual_output=residual_output, input_skip=input_skip)
     m.modelled[3] = False  # a constant channel: never modelled, so no change is added to it either
     rng = np.random.default_rng(0)
     t = 200
@@ -145,3 +148,15 @@ def test_a_residual_output_adds_the_change_to_the_last_frame() -> None:
         frames, _ = CachedSampler(m).run(first, cond, Sampling(0.0, np.random.default_rng(0)))
         expected = first[0, :10] if residual else np.zeros(10)
         np.testing.assert_allclose(frames[0, -1, :10], expected, atol=1e-6)
+
+
+def test_an_input_skip_starts_at_zero() -> None:
+    """A new input-skip path adds nothing, so a warm start from a network without one keeps its outputs."""
+    plain = _model()
+    skip = DanceNet(DanceNetConfig(**(plain.cfg.to_dict() | {"input_skip": True})))
+    missing = skip.load_state_dict(plain.state_dict(), strict=False).missing_keys
+    assert sorted(missing) == ["input_skip.bias", "input_skip.weight"]
+    skip.eval()
+    x, cond = torch.randn(2, 30, 12), torch.randn(2, 35, 30)
+    with torch.no_grad():
+        torch.testing.assert_close(skip.forward_frames(x, cond), plain.forward_frames(x, cond))

@@ -7,7 +7,7 @@ import numpy as np
 import torch
 
 from dancenet_core.model.dancenet import DanceNet, DanceNetConfig
-from dancenet_core.train import warm_start
+from dancenet_core.train import warm_start, with_own_predictions
 
 
 def _net(mixtures: int, styles: list[str], residual: bool, seed: int) -> DanceNet:
@@ -51,3 +51,23 @@ def test_residual_outputs_start_by_copying_the_last_frame_and_same_heads_copy_ex
     warm_start(same, dst)
     with torch.no_grad():
         torch.testing.assert_close(same(x, music, torch.tensor([0, 0])), dst(x, music, torch.tensor([0, 0])))
+
+
+def test_own_predictions_replace_the_chosen_share_of_frames_after_the_first() -> None:
+    """Scheduled sampling's inputs: share 0 keeps the real frames, share 1 replaces every frame but the first
+    with the model's own draws (contacts 0/1, constant channels kept at zero)."""
+    net = _net(2, ["a"], residual=False, seed=0)
+    net.modelled[4] = False
+    x, music = _inputs()
+    x[..., 4] = 0.0
+    style = torch.tensor([0, 0])
+    torch.testing.assert_close(with_own_predictions(net, x, music, style, 0.0), x)
+    own = with_own_predictions(net, x, music, style, 1.0)
+    torch.testing.assert_close(own[:, 0], x[:, 0])
+    modelled = [c for c in range(10) if c != 4]
+    assert not torch.isclose(own[:, 1:, modelled], x[:, 1:, modelled]).any()
+    assert set(own[:, 1:, 10:].unique().tolist()) <= {0.0, 1.0}
+    assert (own[..., 4] == 0).all()
+    half = with_own_predictions(net, x, music, style, 0.5)
+    replaced = ~torch.isclose(half[:, 1:, 0], x[:, 1:, 0])
+    assert 0.3 < replaced.float().mean() < 0.7

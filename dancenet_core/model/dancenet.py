@@ -43,6 +43,10 @@ class DanceNetConfig:
     # previous frame scores 0.97). Predicting the change passes the frame through (R^2 0.97 from the start),
     # but free-running such a model drifts away within seconds (docs/training.md): an option, off by default.
     residual_output: bool = False
+    # A linear path from the input frame straight to every output, beside the stack (starts at zero). It
+    # carries what the 64 residual channels lose (the root's steps) while the outputs stay absolute, so a
+    # learned, damped copy replaces residual_output's exact one (which drifts when free-running).
+    input_skip: bool = False
     min_log_sigma: float = float(np.log(0.03))
     dropout_music: float = 0.1
     input_dropout: float = 0.4
@@ -139,11 +143,15 @@ class DanceNet(nn.Module):
         self.layers = nn.ModuleList(ResidualLayer(cfg, d) for d in cfg.dilations)
         out = output_size(cfg)
         self.decoder = nn.Sequential(nn.ReLU(), nn.Conv1d(s, s, 1), nn.ReLU(), nn.Conv1d(s, out, 1))
+        self.input_skip = nn.Conv1d(cfg.motion_dim, out, 1) if cfg.input_skip else None
         # Channels the mixture models (constant ones, e.g. resting fingers, are left out of the loss).
         self.register_buffer("modelled", torch.ones(cfg.continuous_dim, dtype=torch.bool))
         for p in self.parameters():
             if p.dim() > 1:
                 nn.init.xavier_normal_(p)
+        if self.input_skip is not None:  # starts as the network without it (a warm start keeps its dances)
+            nn.init.zeros_(self.input_skip.weight)
+            nn.init.zeros_(self.input_skip.bias)
 
     def conditioning(self, music: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
         """Music code + style embedding per frame, [B, code + style_dim, T]."""
@@ -159,12 +167,16 @@ class DanceNet(nn.Module):
         `residual_output`, the means are offsets from `base` (default: the input frames; training passes
         them before input dropout).
         """
-        x = self.motion_encoder(motion.transpose(1, 2))
+        frames = motion.transpose(1, 2)
+        x = self.motion_encoder(frames)
         skip = 0.0
         for layer in self.layers:
             x, s = layer(x, cond)
             skip = skip + s
-        out = self.decoder(skip).transpose(1, 2)
+        out = self.decoder(skip)
+        if self.input_skip is not None:
+            out = out + self.input_skip(frames)
+        out = out.transpose(1, 2)
         if not self.cfg.residual_output:
             return out
         k, d = self.cfg.mixtures, self.cfg.continuous_dim

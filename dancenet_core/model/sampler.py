@@ -64,7 +64,7 @@ class Sampling:
 def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
     frames, outputs, t0, t1, queues, dilations,
     enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
-    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1,
+    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b,
     mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher, residual,
 ):  # fmt: skip
     """Frames t0..t1-1 (frame t from frames < t). With `teacher` non-empty, feed those frames instead of
@@ -93,6 +93,8 @@ def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
             s = np.maximum(gated.reshape(n_layers * r) @ skip_w + skip_b, zero)
             s = np.maximum(s @ dec_w0 + dec_b0, zero)
             out = s @ dec_w1 + dec_b1
+            if in_w.shape[0] > 0:  # the input-skip path: the last frame straight to the outputs
+                out += frames[t - 1, b] @ in_w + in_b
             if residual:  # each component's mean is an offset from the previous frame
                 for i in range(mixtures):
                     for j in range(cont):
@@ -172,6 +174,9 @@ class CachedSampler:
         self.skip_b = np.sum([b(layer.skip) for layer in model.layers], axis=0).astype(np.float32)
         dec = model.decoder
         self.dec = [w(dec[1]), b(dec[1]).astype(np.float32), w(dec[3]), b(dec[3]).astype(np.float32)]
+        skip_in = getattr(model, "input_skip", None)
+        self.input_skip = [w(skip_in), b(skip_in).astype(np.float32)] if skip_in is not None else \
+            [np.zeros((0, len(self.dec[3])), np.float32), np.zeros(len(self.dec[3]), np.float32)]
         self.modelled = model.modelled.numpy().astype(np.bool_)
         self.dilations = np.array(cfg.dilations, dtype=np.int64)
 
@@ -218,7 +223,7 @@ class CachedSampler:
                 unif[t0:] = rng.random((t1 - t0, bsz), dtype=np.float32)
             _generate(frames, outputs, t0, t1, queues, self.dilations, *self.enc,
                       self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
-                      cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
+                      *self.input_skip, cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
                       np.float32(temperature), eps, unif, tf, cfg.residual_output)
             if progress is not None:
                 progress(t1 / t_total)

@@ -26,9 +26,10 @@ def music_features(variant: str) -> str:
 
 
 def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list[str], window: int,
-                mixtures: int = 1, residual_output: bool = False) -> nn.Module:
-    """A freshly initialised network for `variant` (see VARIANTS); `mixtures` sizes DanceNet's GMM and
-    `residual_output` makes its means changes from the last frame (DanceNet variants only)."""
+                mixtures: int = 1, residual_output: bool = False, input_skip: bool = False) -> nn.Module:
+    """A freshly initialised network for `variant` (see VARIANTS); `mixtures` sizes DanceNet's GMM,
+    `residual_output` makes its means changes from the last frame and `input_skip` adds a linear path from
+    the input frame to the outputs (DanceNet variants only)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     music_dim = MEL_BANDS if music_features(variant) == "mel" else 15
@@ -39,7 +40,7 @@ def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list
     cfg = DanceNetConfig(motion_dim=motion_dim, continuous_dim=continuous_dim, styles=styles, fps=25.0,
                          music_window=window, music_dim=music_dim, music_features=music_features(variant),
                          mixtures=mixtures if variant != "dancenet_mse" else 1, residual_output=residual_output,
-                         loss="mse" if variant == "dancenet_mse" else "gmm",
+                         input_skip=input_skip, loss="mse" if variant == "dancenet_mse" else "gmm",
                          music_encoder="frame" if variant == "dancenet_no_context" else "context")
     return DanceNet(cfg)
 
