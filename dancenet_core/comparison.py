@@ -11,8 +11,9 @@
    paper's hit rate; feet: PFC and the sliding ratio; style consistency: the classifier's accuracy on the
    requested style. The real test dances are measured the same way (the first row).
 
-Writes `comparison.md`, `comparison.json` and `figure_3b.png` (the music's onset envelope over the dance's
-kinematic velocity, as the paper's Figure 3b) into `--out`.
+Writes `comparison.md`, `comparison.json`, `figure_3b.png` (the music's onset envelope over the dance's
+kinematic velocity, as the paper's Figure 3b) and `contact_sheet.png` (the same 20 s of a test waltz, the real
+dance above the shipped model's with the foot model below) into `--out`.
 """
 
 from __future__ import annotations
@@ -238,6 +239,7 @@ def run(args: argparse.Namespace) -> int:
     from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from .model.variants import VARIANTS, music_features
     from .motion_style import MotionStyleModel
+    from .render import contact_sheet
     from .representation import decode
 
     t0 = time.perf_counter()
@@ -291,13 +293,19 @@ def run(args: argparse.Namespace) -> int:
         {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,
          "seed": args.seed, "test_sequences": [p.seq for p in test_pairs], "reference_segments":
          len(ref_feats["hit"]), "rows": table}, indent=1) + "\n")
-    # Figure 3b on the first test sequence of the last style (the waltzes, in the shipped split).
-    i = next(i for i, p in enumerate(test_pairs) if p.style == test_pairs[-1].style)
+    # Figure 3b and the contact sheet on the first test waltz (else the first test sequence).
+    i = next((i for i, p in enumerate(test_pairs) if p.style == "waltz"), 0)
     gen_row = next(r for r in rows if r.name == "dancenet_shipped")
     figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.beats_s[i], real.dances[i].positions(),
               gen_row.dances[i * args.takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
+    foot_row = next(r for r in rows if r.name == "dancenet_shipped_footfix")
+    first_20s = slice(0, int(20 * fps))
+    contact_sheet([(f"real {test_pairs[i].seq}", real.dances[i][first_20s]),
+                   ("DanceNet", foot_row.dances[i * args.takes][first_20s])],
+                  args.out / "contact_sheet.png", cols=6, rows=2, width=240, height=200)
     print(md)
-    print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png ({seconds / 60:.1f} min)")
+    print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png, contact_sheet.png "
+          f"({seconds / 60:.1f} min)")
     return 0
 
 

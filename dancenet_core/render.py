@@ -580,27 +580,35 @@ def write_frames(
 
 
 def contact_sheet(
-    motion: Motion, out: str | Path, cols: int = 4, rows: int = 3, width: int = 320, height: int = 180
+    motion: Motion | Sequence[tuple[str, Motion]], out: str | Path, cols: int = 4, rows: int = 3,
+    width: int = 320, height: int = 180,
 ) -> Path:
-    """A PNG grid of `cols` x `rows` evenly spaced frames, each `width` x `height`, with its time stamp."""
+    """A PNG grid of `cols` x `rows` evenly spaced frames, each `width` x `height`, with its time stamp.
+
+    Given (caption, motion) pairs instead, each motion gets its own block of `rows` rows, one under the other,
+    with its caption on every cell: the same moments of a real and a generated dance, compared by eye.
+    """
     from PIL import Image, ImageDraw, ImageFont
 
     if cols < 1 or rows < 1:
         raise DanceNetError(f"a contact sheet needs at least 1x1 cells, got {cols}x{rows}")
     out = Path(out)
-    frames = np.linspace(0, motion.num_frames - 1, cols * rows).round().astype(int)
-    sheet = Image.new("RGB", (cols * width, rows * height))
+    blocks = [("", motion)] if isinstance(motion, Motion) else list(motion)
+    sheet = Image.new("RGB", (cols * width, len(blocks) * rows * height))
     draw = ImageDraw.Draw(sheet)
     font = ImageFont.load_default(size=max(10, height // 12))
-    for k, (f, image) in enumerate(zip(frames, iter_frames(motion, frames, width, height), strict=True)):
-        x, y = (k % cols) * width, (k // cols) * height
-        sheet.paste(Image.fromarray(image), (x, y))
-        t = f / motion.fps
-        label = f"{int(t // 60)}:{t % 60:05.2f}  #{f}"
-        box = draw.textbbox((x + 6, y + 4), label, font=font)
-        draw.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(20, 20, 24))
-        draw.text((x + 6, y + 4), label, fill=(255, 255, 255), font=font)
-        draw.rectangle((x, y, x + width - 1, y + height - 1), outline=(60, 60, 66))
+    for b, (caption, m) in enumerate(blocks):
+        frames = np.linspace(0, m.num_frames - 1, cols * rows).round().astype(int)
+        for k, (f, image) in enumerate(zip(frames, iter_frames(m, frames, width, height), strict=True)):
+            x, y = (k % cols) * width, (b * rows + k // cols) * height
+            sheet.paste(Image.fromarray(image), (x, y))
+            t = f / m.fps
+            label = f"{caption}  {int(t // 60)}:{t % 60:05.2f}".strip() if caption else \
+                f"{int(t // 60)}:{t % 60:05.2f}  #{f}"
+            box = draw.textbbox((x + 6, y + 4), label, font=font)
+            draw.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(20, 20, 24))
+            draw.text((x + 6, y + 4), label, fill=(255, 255, 255), font=font)
+            draw.rectangle((x, y, x + width - 1, y + height - 1), outline=(60, 60, 66))
     if out.parent != Path():
         _make_dir(out.parent)
     try:

@@ -15,7 +15,14 @@ from PIL import Image
 from dancenet_core.bvh import write_bvh
 from dancenet_core.cli import main
 from dancenet_core.motion import Motion
-from dancenet_core.render import BACKGROUND_RGB, Camera, camera_path, render_frames, render_motion
+from dancenet_core.render import (
+    BACKGROUND_RGB,
+    Camera,
+    camera_path,
+    contact_sheet,
+    render_frames,
+    render_motion,
+)
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX
 
 W, H = 320, 180
@@ -186,3 +193,14 @@ def test_tessellation_follows_size_on_screen() -> None:
     unit = render.figure_scale(DEFAULT_SKELETON)
     small, large = (render._build_figure(DEFAULT_SKELETON, unit, ppm) for ppm in (60.0, 360.0))
     assert len(small.faces) < len(large.faces) / 2
+
+
+def test_a_stacked_contact_sheet_shows_each_dance_in_its_own_rows(tmp_path: Path) -> None:
+    """Real above, generated below: one block of rows per motion, same moments, different pictures."""
+    still, moving = _dance(20, 20.0), _dance(20, 20.0)
+    still.rotations[:, JOINT_INDEX["left_shoulder"]] = 0.0  # arm down; the other one waves it
+    sheet = contact_sheet([("real", still), ("DanceNet", moving)], tmp_path / "pair.png", cols=3, rows=1,
+                          width=80, height=60)
+    image = np.asarray(Image.open(sheet))
+    assert image.shape[:2] == (2 * 60, 3 * 80)
+    assert not np.array_equal(image[:60, 80:], image[60:, 80:])  # the moved figure differs after frame 0
