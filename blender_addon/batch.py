@@ -53,7 +53,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--temperature", type=float, default=0.1, help="0 = the most likely dance (default 0.1)")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
     p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
-    p.add_argument("--fps", type=int, help="scene frame rate (default: the model's own rate, no resampling)")
+    p.add_argument("--fps", type=int, choices=(24, 25, 30, 50, 60),
+                   help="scene frame rate, slerp-resampled (default: the model's own rate, no resampling)")
     p.add_argument("--fbx", action="store_true", help="also write <song>.fbx")
     p.add_argument("--bvh", action="store_true", help="also write <song>.bvh")
     p.add_argument("--render", action="store_true", help="also render <song>.mp4 (Workbench, with the song)")

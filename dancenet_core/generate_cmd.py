@@ -13,6 +13,7 @@ from .outputs import check_folder_writable, refuse_overwrite, safe_stem
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from .generate import DEFAULT_TEMPERATURE
+    from .motion import FRAME_RATES
 
     p = sub.add_parser("generate", help="generate a dance for a song (BVH, .npz and a JSON summary)")
     p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
@@ -22,6 +23,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
                    help=f"variety of the dance, 0 = most likely (default {DEFAULT_TEMPERATURE})")
     p.add_argument("--takes", type=int, default=1, help="number of different dances to generate")
+    p.add_argument("--fps", type=int, choices=FRAME_RATES, default=None,
+                   help="frame rate of the files (slerp-resampled; default: the model's own 25)")
     p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
     p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
@@ -68,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
                                 weights=str(args.weights) if args.weights else None)
     finally:
         bar.close()
+    if args.fps is not None:
+        result.motions = [m.resampled(args.fps) for m in result.motions]
     files = []
     t = time.perf_counter()
     for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):

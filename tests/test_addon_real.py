@@ -37,7 +37,7 @@ def test_batch_mode_dances_two_songs_with_the_shipped_model(tmp_path: Path) -> N
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, str(ROOT / "blender_addon" / "batch.py"), *map(str, songs), "--out", str(out), "--bvh",
-         "--fbx", "--seed", "3"],
+         "--fbx", "--seed", "3", "--fps", "30"],
         capture_output=True, text=True, env=env, timeout=600, cwd=ROOT,
     )
     summary = [line for line in proc.stdout.splitlines() if line.startswith(("OK ", "FAILED ")) or "songs done" in line]
@@ -48,3 +48,6 @@ def test_batch_mode_dances_two_songs_with_the_shipped_model(tmp_path: Path) -> N
         folder = out / stem
         assert {p.suffix for p in folder.iterdir()} >= {".blend", ".bvh", ".fbx"}
         assert (folder / f"{stem}.bvh").stat().st_size > 10_000
+        # --fps 30: the model's 25-fps dance slerp-resampled onto a 30-fps scene, so the BVH is at 30.
+        frame_time = next(line for line in (folder / f"{stem}.bvh").read_text().splitlines() if "Frame Time" in line)
+        assert float(frame_time.split(":")[1]) == pytest.approx(1 / 30, abs=1e-6)
