@@ -52,6 +52,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=0.1, help="0 = the most likely dance (default 0.1)")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
+    p.add_argument("--start", type=float, default=0.0, metavar="SECONDS", help="dance from this second of the song")
+    p.add_argument("--end", type=float, default=None, metavar="SECONDS", help="dance up to this second of the song")
     p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
     p.add_argument("--fps", type=int, choices=(24, 25, 30, 50, 60),
                    help="scene frame rate, slerp-resampled (default: the model's own rate, no resampling)")
@@ -75,7 +77,7 @@ def run_song(
     context = bpy.context
     scene = context.scene
     request = pipeline.GenerationRequest(
-        song, args.style, args.seed, args.temperature, args.takes, args.footfix
+        song, args.style, args.seed, args.temperature, args.takes, args.footfix, args.start, args.end
     )
     result = generator(**request.kwargs())
     scene.render.fps, scene.render.fps_base = args.fps or round(result.motions[0].fps), 1.0

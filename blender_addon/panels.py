@@ -53,6 +53,11 @@ class _DanceNetPanel:
         col.prop(props, "takes")
         col.prop(props, "footfix")
         col.prop(props, "add_markers")
+        col.prop(props, "use_part")
+        if props.use_part:
+            row = col.row(align=True)
+            row.prop(props, "part_start", text="From")
+            row.prop(props, "part_end", text="To")
 
         col = layout.column()
         col.row().prop(props, "target", expand=True)

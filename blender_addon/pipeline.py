@@ -65,11 +65,13 @@ class GenerationRequest:
     temperature: float = 0.1  # the core's DEFAULT_TEMPERATURE
     takes: int = 1
     footfix: bool = True
+    start_s: float = 0.0  # the part of the song to dance, in the song's own seconds
+    end_s: float | None = None
 
     def kwargs(self) -> dict[str, Any]:
         return {
             "song": self.song, "style": self.style, "seed": self.seed, "temperature": self.temperature,
-            "takes": self.takes, "footfix": self.footfix,
+            "takes": self.takes, "footfix": self.footfix, "start_s": self.start_s, "end_s": self.end_s,
         }  # fmt: skip
 
 
@@ -80,6 +82,7 @@ class Placement:
     armature: str | None = None  # None: build a new rig
     bone_map: bonemap.BoneMap | None = None  # None with an armature: detect
     strip: str | None = None  # the sound strip playing the song; None: add the song as a new strip
+    song_frame: float = 1.0  # where a new strip for the song starts (an existing strip's own place wins)
     add_markers: bool = True
     with_mesh: bool = True
 
@@ -177,7 +180,12 @@ def prepare(scene: bpy.types.Scene) -> Plan:
         song, strip_name = song_of_strip(strip), strip.name
     else:
         song, strip_name = check_song(props.music_file), None
-    placement = Placement(strip=strip_name, add_markers=props.add_markers, with_mesh=props.with_mesh)
+        strip = strip_playing(scene, song)
+    fps = scene.render.fps / scene.render.fps_base
+    song_frame = song_zero_frame(strip, fps) if strip is not None else float(scene.frame_start)
+    start_s, end_s = part_of_song(scene, strip, song_frame)
+    placement = Placement(strip=strip_name, song_frame=song_frame, add_markers=props.add_markers,
+                          with_mesh=props.with_mesh)
     if props.target == "EXISTING":
         target = props.armature
         if target is None or target.type != "ARMATURE":
@@ -187,7 +195,8 @@ def prepare(scene: bpy.types.Scene) -> Plan:
         resolve_map(target, placement.bone_map)  # fail now, not after minutes of generation
     # A style the installed model no longer has reads back as "": fall back to Auto.
     style = props.style or "auto"
-    request = GenerationRequest(song, style, props.seed, props.temperature, props.takes, props.footfix)
+    request = GenerationRequest(song, style, props.seed, props.temperature, props.takes, props.footfix,
+                                start_s, end_s)
     return Plan(request, placement)
 
 
@@ -271,15 +280,53 @@ def _action_name(song: Path, style: str, seed: int, take: int, takes: int) -> st
     return f"{name} · take {take}" if takes > 1 else name
 
 
-def _song_strip(scene: bpy.types.Scene, song: Path, frame: int) -> bpy.types.Strip:
-    """The sound strip already playing `song` (a second take must not add a second copy), else a new one."""
-    scene.sequence_editor_create()
-    strips = strips_of(scene)
-    for s in strips:
+def strip_playing(scene: bpy.types.Scene, song: Path) -> bpy.types.Strip | None:
+    """The sound strip already playing `song` (a second take must not add a second copy), if any."""
+    if scene.sequence_editor is None:
+        return None
+    for s in strips_of(scene):
         if s.type == "SOUND" and s.sound is not None:
             path = Path(bpy.path.abspath(s.sound.filepath, library=s.sound.library))
             if path.is_file() and path.resolve() == song.resolve():
                 return s
+    return None
+
+
+def song_zero_frame(strip: bpy.types.Strip, fps: float) -> float:
+    """The timeline frame where the song's second 0 would play: Blender plays the sound from
+    (frame - frame_start + animation_offset_start) / fps + sound_offset seconds."""
+    return strip.frame_start - strip.animation_offset_start - strip.sound_offset * fps
+
+
+def part_of_song(scene: bpy.types.Scene, strip: bpy.types.Strip | None, song_frame: float,
+                 ) -> tuple[float, float | None]:
+    """(start, end) seconds of the song to dance: what the strip lets be heard (its trim and place on the
+    timeline), within the panel's frames when "Part of the Song" is on. The end is None for a song with
+    no strip yet and no chosen end (the whole song)."""
+    from dancenet_core.generate import MIN_PART_S  # late: the core needs the dependencies, checked by now
+
+    props = scene.dancenet
+    fps = scene.render.fps / scene.render.fps_base
+    lo, hi = (strip.frame_final_start, strip.frame_final_end) if strip is not None else (song_frame, None)
+    if props.use_part:
+        lo, hi = max(lo, props.part_start), min(hi, props.part_end + 1) if hi is not None else props.part_end + 1
+    if hi is not None and hi - lo < fps * MIN_PART_S:
+        where = f"frames {props.part_start}-{props.part_end}" if props.use_part else f"strip '{strip.name}'"
+        raise DanceNetError(f"Less than {MIN_PART_S:g} s of the song is heard in {where}: choose frames "
+                            f"where the song plays (it is heard from frame {lo:g})")
+    if lo < song_frame:
+        raise DanceNetError(f"Frame {lo:g} is before the song starts (frame {song_frame:g}): "
+                            "move the part's first frame")
+    return (lo - song_frame) / fps, (None if hi is None else (hi - song_frame) / fps)
+
+
+def _song_strip(scene: bpy.types.Scene, song: Path, frame: int) -> bpy.types.Strip:
+    """The sound strip already playing `song`, else a new one starting at `frame`."""
+    found = strip_playing(scene, song)
+    if found is not None:
+        return found
+    scene.sequence_editor_create()
+    strips = strips_of(scene)
     channel = min(1 + max((s.channel for s in strips), default=0), 128)
     try:
         return strips.new_sound(song.stem, str(song), channel, frame)
@@ -331,8 +378,9 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
 
     fps = scene.render.fps / scene.render.fps_base
     if strip is None:
-        strip = _song_strip(scene, req.song, scene.frame_start)
-    frame_start = round(strip.frame_start)
+        strip = _song_strip(scene, req.song, round(place.song_frame))
+    # The dance starts where the part it was made for is heard (the strip's first audible frame by default).
+    frame_start = round(song_zero_frame(strip, fps) + result.start_s * fps)
     notes: list[str] = []
     if target is None:
         target = rig.create_rig(context, RIG_NAME, result.motions[0].skeleton, place.with_mesh)

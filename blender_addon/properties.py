@@ -63,6 +63,12 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     footfix: BoolProperty(
         name="Foot Clean-up", default=True, description="Remove foot sliding and floor contact errors"
     )
+    use_part: BoolProperty(
+        name="Part of the Song", default=False,
+        description="Dance only between two timeline frames (a sound strip's trim is always honoured)",
+    )
+    part_start: IntProperty(name="From Frame", default=1, description="First timeline frame to dance")
+    part_end: IntProperty(name="To Frame", default=250, description="Last timeline frame to dance")
     target: EnumProperty(
         name="Target",
         items=[

@@ -31,6 +31,8 @@ DEFAULT_TEMPERATURE = 0.1
 MAX_TEMPERATURE = 3.0
 MAX_SEED = 2**32 - 1
 MAX_TAKES = 100
+# The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).
+MIN_PART_S = 1.0
 OUTPUT_SMOOTHING_FRAMES = 1.0
 
 Progress = Callable[[str, float], None]
@@ -51,6 +53,7 @@ class GenerationResult:
     style_probabilities: dict[str, float]
     timings: dict[str, float] = field(default_factory=dict)
     contacts: list[np.ndarray] = field(default_factory=list)  # [T, 2] predicted foot contacts per take
+    start_s: float = 0.0  # where the dance starts in the song; beat times count from there
 
 
 @lru_cache(maxsize=2)
@@ -113,6 +116,24 @@ def finish_frames(bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHIN
     return feats
 
 
+def check_part(start_s: float, end_s: float | None) -> None:
+    """Reject a part of the song that cannot exist whatever the song (before the music is analysed)."""
+    if not (np.isfinite(start_s) and start_s >= 0):
+        raise DanceNetError(f"start must be 0 or more seconds into the song, got {start_s}")
+    if end_s is not None and not (np.isfinite(end_s) and end_s >= start_s + MIN_PART_S):
+        raise DanceNetError(f"end ({end_s} s) must be at least {MIN_PART_S:g} s after start ({start_s} s)")
+
+
+def song_part(duration_s: float, start_s: float, end_s: float | None) -> tuple[float, float]:
+    """(start, end) seconds of the part to dance: the end is clipped to the song's; a start too close to the
+    song's end is an error that says how long the song is."""
+    end = duration_s if end_s is None else min(end_s, duration_s)
+    if end - start_s < MIN_PART_S:
+        raise DanceNetError(f"start {start_s:g} s leaves less than {MIN_PART_S:g} s of the song to dance "
+                            f"(the song lasts {duration_s:.1f} s)")
+    return start_s, end
+
+
 def check_song_path(song: str | Path) -> Path:
     """`song` as a Path if it names a file; a one-line error saying what it is otherwise."""
     path = Path(song)
@@ -124,9 +145,10 @@ def check_song_path(song: str | Path) -> Path:
 
 
 def check_request(song: str | Path, style: str, seed: int, temperature: float, takes: int, footfix: bool,
-                  weights: str | None) -> None:
+                  weights: str | None, start_s: float = 0.0, end_s: float | None = None) -> None:
     """Reject bad arguments in a second, before a minute of music analysis: loads the weights (and the foot
     model when asked) so a bad file or an unknown style is reported now."""
+    check_part(start_s, end_s)
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed <= MAX_SEED:
         raise DanceNetError(f"seed must be a whole number from 0 to {MAX_SEED}, got {seed}")
     if not 0 <= temperature <= MAX_TEMPERATURE:  # also false for NaN
@@ -154,13 +176,17 @@ def generate_dance(
     progress: Progress | None = None,
     should_cancel: Callable[[], bool] | None = None,
     weights: str | None = None,
+    start_s: float = 0.0,
+    end_s: float | None = None,
 ) -> GenerationResult:
-    """Generate `takes` dances for a song. Same arguments, same seed: the same dance, bit for bit."""
+    """Generate `takes` dances for a song, or for its part from `start_s` to `end_s` seconds (the music
+    encoder then hears only that part, so the dance follows what is played). Same arguments, same seed:
+    the same dance, bit for bit."""
     from .features import FPS as MUSIC_FPS
     from .features import analyze_music
     from .model.sampler import Sampling, music_conditioning
 
-    check_request(song, style, seed, temperature, takes, footfix, weights)
+    check_request(song, style, seed, temperature, takes, footfix, weights, start_s, end_s)
     report = progress or (lambda _s, _f: None)
     cancelled = should_cancel or (lambda: False)
     timings: dict[str, float] = {}
@@ -179,8 +205,9 @@ def generate_dance(
     timings["style_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    n = max(2, int(round(analysis.duration_s * cfg.fps)))
-    music = music_at_frames(analysis.features, MUSIC_FPS, np.arange(n) / cfg.fps)
+    start, end = song_part(analysis.duration_s, start_s, end_s)
+    n = max(2, int(round((end - start) * cfg.fps)))
+    music = music_at_frames(analysis.features, MUSIC_FPS, start + np.arange(n) / cfg.fps)
     cond = music_conditioning(bundle.model, music, bundle.styles.index(chosen))
     rng = np.random.default_rng(seed)
     starts = bundle.start_frames[chosen]
@@ -210,8 +237,11 @@ def generate_dance(
     contacts = [f[:, layout.contacts] for f in takes_feats]
     timings["decode_s"] = time.perf_counter() - t
     report("done", 1.0)
+    def within(times: np.ndarray) -> np.ndarray:
+        return times[(times >= start) & (times < end)] - start
+
     return GenerationResult(
-        motions=motions, beat_times=analysis.beat_times, downbeat_times=analysis.downbeat_times,
-        tempo_bpm=analysis.tempo_bpm, duration_s=analysis.duration_s, style=chosen,
-        style_probabilities=probs, timings=timings, contacts=contacts,
+        motions=motions, beat_times=within(analysis.beat_times), downbeat_times=within(analysis.downbeat_times),
+        tempo_bpm=analysis.tempo_bpm, duration_s=end - start, style=chosen,
+        style_probabilities=probs, timings=timings, contacts=contacts, start_s=start,
     )

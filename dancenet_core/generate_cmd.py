@@ -25,6 +25,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--takes", type=int, default=1, help="number of different dances to generate")
     p.add_argument("--fps", type=int, choices=FRAME_RATES, default=None,
                    help="frame rate of the files (slerp-resampled; default: the model's own 25)")
+    p.add_argument("--start", type=float, default=0.0, metavar="SECONDS",
+                   help="dance from this many seconds into the song (default: its beginning)")
+    p.add_argument("--end", type=float, default=None, metavar="SECONDS",
+                   help="dance up to this many seconds into the song (default: its end)")
     p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
     p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
@@ -68,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = generate_dance(args.song, style=args.style, seed=args.seed, temperature=args.temperature,
                                 takes=args.takes, footfix=not args.no_footfix, progress=progress,
-                                weights=str(args.weights) if args.weights else None)
+                                weights=str(args.weights) if args.weights else None, start_s=args.start,
+                                end_s=args.end)
     finally:
         bar.close()
     if args.fps is not None:
@@ -85,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
 
         t = time.perf_counter()
         for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-            render_motion(motion, args.out / f"{name}.mp4", audio=args.song)
+            render_motion(motion, args.out / f"{name}.mp4", audio=args.song, audio_start=result.start_s)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
     result.timings["total_s"] = time.perf_counter() - t0
@@ -94,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         "style": result.style,
         "style_probabilities": result.style_probabilities,
         "tempo_bpm": round(result.tempo_bpm, 2),
+        "start_s": round(result.start_s, 3),
         "duration_s": round(result.duration_s, 3),
         "fps": result.motions[0].fps,
         "frames": result.motions[0].num_frames,

@@ -653,8 +653,10 @@ def render_motion(
     height: int = 360,
     progress: Progress | None = None,
     frames_dir: str | Path | None = None,
+    audio_start: float = 0.0,
 ) -> Path:
-    """An H.264 MP4 of the dance at the motion's fps, with `audio` (trimmed or padded to the dance) muxed in.
+    """An H.264 MP4 of the dance at the motion's fps, with `audio` from `audio_start` seconds (a dance of
+    a part of the song) trimmed or padded to the dance, muxed in.
 
     `progress(fraction)` is called after each frame; `frames_dir` also gets every frame as a PNG.
     The file appears only when complete.
@@ -674,7 +676,7 @@ def render_motion(
     cmd = [_tool("ffmpeg"), "-y", "-hide_banner", "-nostdin", "-loglevel", "error", "-f", "rawvideo",
            "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-framerate", str(rate), "-i", "pipe:0"]
     if audio is not None:
-        cmd += ["-i", str(audio), "-map", "0:v:0", "-map", "1:a:0", "-af", "apad",
+        cmd += ["-ss", f"{audio_start:.6f}", "-i", str(audio), "-map", "0:v:0", "-map", "1:a:0", "-af", "apad",
                 "-c:a", "aac", "-b:a", "192k"]
     # -t ends every stream at the last frame: the music is cut there, or padded with silence up to it.
     cmd += ["-t", f"{float(motion.num_frames / rate):.6f}", "-c:v", "libx264", "-preset", "veryfast",

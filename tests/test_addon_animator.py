@@ -3,9 +3,12 @@ rates, a part of the song, root motion, continue from here, takes on the NLA, me
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numpy as np
 import pytest
 from test_addon import addon, bpy, scene, song  # noqa: F401 (fixtures)
-from test_addon_doubles import make_fake_generator, write_song
+from test_addon_doubles import CALLS, make_fake_generator, write_song
 
 
 def test_batch_fps_resamples_onto_the_scene_rate(addon, tmp_path, capsys):  # noqa: F811
@@ -20,3 +23,110 @@ def test_batch_fps_resamples_onto_the_scene_rate(addon, tmp_path, capsys):  # no
     assert opened.render.fps == 60 and round(action.frame_range[1] - action.frame_range[0]) + 1 == 90
     with pytest.raises(SystemExit):
         batch.parse_args([str(song_path), "--out", str(tmp_path), "--fps", "23"])
+
+
+# --- a part of the song ------------------------------------------------------------------------------
+
+
+def keyed_range(rig_name: str = "DanceNet Dancer") -> tuple[int, int]:
+    start, end = bpy.data.objects[rig_name].animation_data.action.frame_range
+    return round(start), round(end)
+
+
+def test_trimmed_moved_strip_dances_the_audio_heard(scene, addon, tmp_path):  # noqa: F811
+    """24 fps; the 4-s song's strip starts at frame 30, its first second and last half second trimmed off,
+    its sound shifted 0.25 s: frames 54-113 play the song from 1.25 s to 3.75 s."""
+
+    song_path = write_song(tmp_path / "long.wav", 4.0)
+    scene.render.fps = 24
+    scene.sequence_editor_create()
+    strip = scene.sequence_editor.strips.new_sound("song", str(song_path), 2, 30)
+    strip.frame_offset_start, strip.frame_offset_end, strip.sound_offset = 24, 12, 0.25
+    scene.sequence_editor.active_strip = strip
+    scene.dancenet.music_source = "STRIP"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert CALLS[-1]["start_s"] == pytest.approx(1.25) and CALLS[-1]["end_s"] == pytest.approx(3.75)
+    assert keyed_range() == (54, 113) and (scene.frame_start, scene.frame_end) == (54, 113)
+    # Beats of the song (every 0.5 s) are marked where they are heard: song second b at frame 30 + 24 (b - 0.25).
+    heard = sorted(m.frame for m in scene.timeline_markers)
+    assert heard == [round(30 + 24 * (b - 0.25)) for b in np.arange(1.5, 3.75, 0.5)]
+
+    # Part of the Song narrows it to frames 60-89 (song 1.5 s to 2.75 s).
+    scene.dancenet.use_part, scene.dancenet.part_start, scene.dancenet.part_end = True, 60, 89
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert CALLS[-1]["start_s"] == pytest.approx(1.5) and CALLS[-1]["end_s"] == pytest.approx(2.75)
+    assert keyed_range() == (60, 89)
+
+
+def test_part_of_a_song_file_counts_from_the_scene_start(scene, addon, song):  # noqa: F811
+
+    scene.render.fps, scene.frame_start = 24, 11
+    props = scene.dancenet
+    props.use_part, props.part_start, props.part_end = True, 23, 46
+    props.music_source, props.music_file = "FILE", str(song)
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert CALLS[-1]["start_s"] == pytest.approx(0.5) and CALLS[-1]["end_s"] == pytest.approx(1.5)
+    strip = scene.sequence_editor.strips_all[0]
+    assert strip.frame_start == 11 and keyed_range() == (23, 46)
+
+
+def test_frames_where_the_song_is_not_heard_are_refused(scene, addon, song):  # noqa: F811
+    from test_addon import snapshot
+
+    scene.render.fps = 24
+    scene.sequence_editor_create()
+    strip = scene.sequence_editor.strips.new_sound("song", str(song), 1, 1)
+    scene.sequence_editor.active_strip = strip
+    props = scene.dancenet
+    props.music_source, props.use_part, props.part_start, props.part_end = "STRIP", True, 100, 200
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError, match="Less than 1 s of the song is heard in frames 100-200"):
+        bpy.ops.dancenet.generate()
+    assert snapshot(scene) == before
+
+
+def test_batch_start_and_end(addon, tmp_path, capsys):  # noqa: F811
+    from blender_addon import batch
+
+    song_path = write_song(tmp_path / "four.wav", 4.0)
+    code = batch.main([str(song_path), "--out", str(tmp_path / "out"), "--fps", "30", "--start", "1", "--end", "2.5"],
+                      generator=make_fake_generator())
+    assert code == 0, capsys.readouterr().out
+    assert CALLS[-1]["start_s"] == 1.0 and CALLS[-1]["end_s"] == 2.5
+    assert keyed_range() == (31, 75)  # the strip at frame 1, second 1 heard at frame 31, 1.5 s = 45 frames
+
+
+# --- the shipped model ---------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def real_scene(addon, tmp_path, monkeypatch):  # noqa: F811
+    """An empty 24-fps scene and the real generate_dance (the shipped model), the cache in tmp_path."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.render.fps = 24
+    return bpy.context.scene
+
+
+def click_song(path: Path, seconds: float = 8.0, bpm: float = 110.0) -> Path:
+    import soundfile as sf
+
+    sr = 22050
+    t = np.arange(int(seconds * sr)) / sr
+    sf.write(path, (0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / bpm) < 0.01)).astype(np.float32), sr)
+    return path
+
+
+def test_shipped_model_dances_the_heard_part_of_a_trimmed_strip(real_scene, tmp_path):
+    sc = real_scene
+    sc.sequence_editor_create()
+    strip = sc.sequence_editor.strips.new_sound("song", str(click_song(tmp_path / "clicks.wav")), 1, 30)
+    strip.frame_offset_start, strip.frame_offset_end = 48, 24  # heard: song 2 s to 7 s, frames 78-197
+    sc.sequence_editor.active_strip = strip
+    sc.dancenet.music_source, sc.dancenet.seed = "STRIP", 4
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert keyed_range() == (78, 197)
+    clicks = 30 + 24 * np.arange(0, 8, 60 / 110)  # where each click is heard on the timeline
+    marks = np.array([m.frame for m in sc.timeline_markers])
+    assert len(marks) >= 8 and marks.min() >= 78 and marks.max() <= 197
+    assert np.abs(marks[:, None] - clicks[None]).min(axis=1).max() <= 1.0  # every beat marker on a heard click

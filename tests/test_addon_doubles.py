@@ -22,6 +22,8 @@ from dancenet_core.skeleton import DEFAULT_SKELETON
 FAKE_STYLES = ["ballet", "hiphop", "jazz"]
 FAKE_FPS = 30.0
 FAKE_TEMPO = 120.0
+# The keyword arguments of every fake generation, oldest first (tests read what the add-on asked for).
+CALLS: list[dict] = []
 
 
 def write_song(path: Path, seconds: float = 2.0, rate: int = 22050) -> Path:
@@ -72,8 +74,13 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
         progress: Callable[[str, float], None] | None = None,
         should_cancel: Callable[[], bool] | None = None,
         weights: str | None = None,
+        start_s: float = 0.0,
+        end_s: float | None = None,
     ) -> GenerationResult:
-        seconds = song_seconds(Path(song))
+        CALLS.append({"song": Path(song), "style": style, "seed": seed, "takes": takes, "start_s": start_s,
+                      "end_s": end_s})
+        end = song_seconds(Path(song)) if end_s is None else min(end_s, song_seconds(Path(song)))
+        seconds = end - start_s
         for k in range(steps):
             if should_cancel is not None and should_cancel():
                 raise GenerationCancelled
@@ -82,7 +89,8 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
             time.sleep(step_delay)
         probabilities = {"hiphop": 0.7, "jazz": 0.2, "ballet": 0.1}
         chosen = max(probabilities, key=probabilities.get) if style == "auto" else style
-        beats = np.arange(0.0, seconds, 60.0 / FAKE_TEMPO)
+        beats = np.arange(0.0, end, 60.0 / FAKE_TEMPO)
+        beats = beats[beats >= start_s] - start_s
         return GenerationResult(
             motions=[synthetic_motion(seconds, 1000 * seed + k) for k in range(takes)],
             beat_times=beats,
@@ -92,6 +100,7 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
             style=chosen,
             style_probabilities=probabilities if style == "auto" else {},
             timings={"fake_s": steps * step_delay},
+            start_s=start_s,
         )
 
     return fake_generate_dance

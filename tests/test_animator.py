@@ -53,3 +53,42 @@ def test_fps_outside_the_offered_rates_is_one_line(song: Path, tmp_path: Path, c
         cli_main(["generate", str(song), "-o", str(tmp_path), "--fps", "23"])
     err = capsys.readouterr().err.strip().splitlines()
     assert e.value.code == 2 and "--fps" in err[-1] and "invalid choice" in err[-1]
+
+
+def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path: Path, monkeypatch) -> None:
+    import json
+
+    from dancenet_core.data.build import music_at_frames
+    from dancenet_core.features import FPS, analyze_music
+    from dancenet_core.model import sampler
+
+    heard = []
+    real = sampler.music_conditioning
+    monkeypatch.setattr(sampler, "music_conditioning", lambda model, music, style: heard.append(music) or
+                        real(model, music, style))
+    m = generate(song, tmp_path, "--start", "4", "--end", "10", "--render")
+    assert m.num_frames == 150  # 6 s at 25 fps
+    analysis = analyze_music(song)
+    np.testing.assert_allclose(heard[0], music_at_frames(analysis.features, FPS, 4 + np.arange(150) / 25), atol=1e-6)
+    summary = json.loads((tmp_path / "clicks.json").read_text())
+    inside = analysis.beat_times[(analysis.beat_times >= 4) & (analysis.beat_times < 10)]
+    assert summary["start_s"] == 4 and summary["duration_s"] == 6 and summary["beats"] == len(inside)
+    # The preview plays the part that was danced: its first click is the song's first after 4 s (4.36 s).
+    import subprocess
+
+    raw = subprocess.run(["ffmpeg", "-v", "error", "-i", str(tmp_path / "clicks.mp4"), "-f", "f32le", "-ac", "1",
+                          "-ar", "22050", "-"], capture_output=True, check=True).stdout
+    audio = np.frombuffer(raw, np.float32)
+    first_click = np.argmax(np.abs(audio) > 0.35) / 22050
+    assert abs(first_click - (8 * 60 / 110 - 4)) < 0.03, first_click
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--start", "11.5"], "less than 1 s of the song"),
+    (["--start", "5", "--end", "4"], "at least 1 s after start"),
+    (["--start", "-2"], "start must be 0 or more"),
+])
+def test_bad_parts_are_one_line_errors(song: Path, tmp_path: Path, capsys, args, message) -> None:
+    assert cli_main(["generate", str(song), "-o", str(tmp_path), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and not list(tmp_path.glob("*.bvh"))
