@@ -52,6 +52,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=0.1, help="0 = the most likely dance (default 0.1)")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
+    p.add_argument("--root-motion", choices=("travel", "in-place", "root-bone"), default="travel",
+                   help="travel (as danced), in-place, or root-bone (a root bone carries path and heading)")
     p.add_argument("--start", type=float, default=0.0, metavar="SECONDS", help="dance from this second of the song")
     p.add_argument("--end", type=float, default=None, metavar="SECONDS", help="dance up to this second of the song")
     p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
@@ -81,7 +83,8 @@ def run_song(
     )
     result = generator(**request.kwargs())
     scene.render.fps, scene.render.fps_base = args.fps or round(result.motions[0].fps), 1.0
-    applied = pipeline.apply_result(context, pipeline.Plan(request), result)
+    placement = pipeline.Placement(root_motion=args.root_motion)
+    applied = pipeline.apply_result(context, pipeline.Plan(request, placement), result)
 
     out.mkdir(parents=True, exist_ok=True)
     rig = bpy.data.objects[applied.rig]

@@ -51,16 +51,30 @@ def _object_mode(context: bpy.types.Context) -> None:
         bpy.ops.object.mode_set(mode="OBJECT")
 
 
+def _keyed_locations(action: bpy.types.Action) -> set[str]:
+    """The bones whose location the action keys (layered actions since Blender 4.4, legacy before)."""
+    if hasattr(action, "layers"):
+        curves = [c for layer in action.layers for strip in layer.strips for bag in strip.channelbags
+                  for c in bag.fcurves]
+    else:
+        curves = list(action.fcurves)
+    return {c.data_path.split('"')[1] for c in curves
+            if c.data_path.startswith("pose.bones[") and c.data_path.endswith(".location")}
+
+
 def export_bvh(context: bpy.types.Context, rig: bpy.types.Object, path: str | Path) -> Path:
-    """BVH of the rig's action. Blender writes armature space as is: our rigs store it Y-up, in metres."""
+    """BVH of the rig's action. Blender writes armature space as is: our rigs store it Y-up, in metres.
+    Location channels go on the root only, unless a child bone moves too (the hips under a root bone)."""
     path = Path(path)
     start, end = action_frames(rig)
+    moving = _keyed_locations(rig.animation_data.action)
+    root_only = all(rig.data.bones[b].parent is None for b in moving if b in rig.data.bones)
     _object_mode(context)
     with atomic_path(path) as tmp, _selected(context, [rig], rig), \
             context.temp_override(active_object=rig, object=rig):
         bpy.ops.export_anim.bvh(
             filepath=str(tmp), frame_start=start, frame_end=end, global_scale=1.0,
-            rotate_mode="NATIVE", root_transform_only=True,
+            rotate_mode="NATIVE", root_transform_only=root_only,
         )  # fmt: skip
     return path
 

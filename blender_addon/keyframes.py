@@ -20,6 +20,7 @@ import bpy
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from dancenet_core.errors import DanceNetError
 from dancenet_core.kinematics import fk_numpy
 
 from . import rigdef
@@ -36,6 +37,8 @@ class PoseTracks:
     rotations: dict[str, np.ndarray]  # bone -> [T, 4]
     root_bone: str
     root_locations: np.ndarray  # [T, 3]
+    # A root bone above the hips: its name, quaternions [T, 4] and locations [T, 3] (root-bone motion).
+    floor_bone: tuple[str, np.ndarray, np.ndarray] | None = None
 
     @property
     def num_frames(self) -> int:
@@ -60,11 +63,34 @@ def _leg_length(heads: dict[int, np.ndarray], skeleton: Skeleton) -> float:
     return float(total / 2)
 
 
-def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str]) -> PoseTracks:
+def root_bone_of(rig: bpy.types.Object, hips: str) -> str | None:
+    """The bone at the top of the hips bone's chain (a root bone for engines' root motion), if any."""
+    parents = rig.data.bones[hips].parent_recursive
+    return parents[-1].name if parents else None
+
+
+def _floor_tracks(rest: np.ndarray, a: np.ndarray, o: np.ndarray, turn: np.ndarray, floor: np.ndarray,
+                  yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quaternions and locations of a root bone (rest world matrix `rest`) that carry the dance's floor path
+    and heading. The core maps a point p to the rig's world as a @ p + o, with `turn` its rotation part; the
+    root must move the world as F(y) = T R T^-1 (y - o) + a X + o (R: the heading about the core's up, X: the
+    floor point), so its pose is rest^-1 F rest."""
+    t = len(yaw)
+    f = np.broadcast_to(np.eye(4), (t, 4, 4)).copy()
+    f[:, :3, :3] = turn @ Rotation.from_euler("y", yaw).as_matrix() @ turn.T
+    f[:, :3, 3] = floor @ a.T + o - f[:, :3, :3] @ o
+    basis = np.linalg.inv(rest) @ f @ rest
+    return _continuous_quaternions(basis[:, :3, :3]), basis[:, :3, 3]
+
+
+def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
+             floor: tuple[str, np.ndarray, np.ndarray] | None = None) -> PoseTracks:
     """Pose tracks that make `rig` perform `motion`; `bone_map` maps joint names to existing bone names.
 
     The map must contain the pelvis and the joints in `rigdef.REQUIRED_JOINTS` (see `bonemap.resolve`).
-    Unmapped bones keep an identity pose and ride along with their parents.
+    Unmapped bones keep an identity pose and ride along with their parents. With `floor` = (root bone,
+    floor points [T, 3], heading [T]) (see `rootmotion.split_root`), `motion` is the dance seen from the
+    root bone, and the root bone is keyed to carry it along the floor.
     """
     skeleton = motion.skeleton
     mapped = {skeleton.index(joint): bone for joint, bone in bone_map.items()}
@@ -129,7 +155,12 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str]) ->
             root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
             m[:, :3, 3] = root_target
         posed[name] = m
-    return PoseTracks(rotations, mapped[0], root_locations)
+    tracks = PoseTracks(rotations, mapped[0], root_locations)
+    if floor is not None:
+        root, points, yaw = floor
+        a = scale * qc
+        tracks.floor_bone = (root, *_floor_tracks(rest[root], a, theirs[0] - scale * q @ ours[0], qc, points, yaw))
+    return tracks
 
 
 _LINEAR = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
@@ -193,6 +224,14 @@ def write_action(rig: bpy.types.Object, tracks: PoseTracks, name: str, frame_sta
     path = f'pose.bones["{bpy.utils.escape_identifier(tracks.root_bone)}"].location'
     for i in range(3):
         _fill(new_fcurve(path, i, tracks.root_bone), frames, tracks.root_locations[:, i])
+    if tracks.floor_bone is not None:
+        bone, quats, locations = tracks.floor_bone
+        rig.pose.bones[bone].rotation_mode = "QUATERNION"
+        path = f'pose.bones["{bpy.utils.escape_identifier(bone)}"]'
+        for i in range(4):
+            _fill(new_fcurve(f"{path}.rotation_quaternion", i, bone), frames, quats[:, i])
+        for i in range(3):
+            _fill(new_fcurve(f"{path}.location", i, bone), frames, locations[:, i])
     anim = rig.animation_data or rig.animation_data_create()
     anim.action = action
     if slot is not None:
@@ -219,6 +258,27 @@ def apply_motion(
     action_name: str,
     frame_start: int,
     fps: float,
+    root_motion: str = "travel",
 ) -> bpy.types.Action:
-    """Resample `motion` to `fps`, retarget it through `bone_map` and write it as a new action on `rig`."""
-    return write_action(rig, retarget(rig, motion.resampled(fps), bone_map), action_name, frame_start)
+    """Resample `motion` to `fps`, retarget it through `bone_map` and write it as a new action on `rig`.
+
+    `root_motion` (see `dancenet_core.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
+    top of the hips' chain carries the floor path and heading). A root bone of a rig made by DanceNet is
+    keyed at rest in the other modes, so a take never inherits another take's root pose.
+    """
+    from dancenet_core.rootmotion import apply_mode, split_root
+
+    motion = apply_mode(motion.resampled(fps), root_motion)
+    root = root_bone_of(rig, bone_map["pelvis"])
+    if root_motion == "root-bone":
+        if root is None:
+            raise DanceNetError(f"Root Bone motion needs a bone above the hips; '{bone_map['pelvis']}' of "
+                                f"'{rig.name}' has none: choose New Rig (it gets a root bone) or another Root Motion")
+        local, points, yaw = split_root(motion)
+        tracks = retarget(rig, local, bone_map, (root, points, yaw))
+    else:
+        tracks = retarget(rig, motion, bone_map)
+        if root is not None and rig.data.get(rigdef.RIG_PROP):
+            n = tracks.num_frames
+            tracks.floor_bone = (root, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 3)))
+    return write_action(rig, tracks, action_name, frame_start)

@@ -53,6 +53,7 @@ class _DanceNetPanel:
         col.prop(props, "takes")
         col.prop(props, "footfix")
         col.prop(props, "add_markers")
+        col.prop(props, "root_motion")
         col.prop(props, "use_part")
         if props.use_part:
             row = col.row(align=True)

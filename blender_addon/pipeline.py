@@ -85,6 +85,7 @@ class Placement:
     song_frame: float = 1.0  # where a new strip for the song starts (an existing strip's own place wins)
     add_markers: bool = True
     with_mesh: bool = True
+    root_motion: str = "travel"  # dancenet_core.rootmotion.ROOT_MODES
 
 
 @dataclass
@@ -185,14 +186,19 @@ def prepare(scene: bpy.types.Scene) -> Plan:
     song_frame = song_zero_frame(strip, fps) if strip is not None else float(scene.frame_start)
     start_s, end_s = part_of_song(scene, strip, song_frame)
     placement = Placement(strip=strip_name, song_frame=song_frame, add_markers=props.add_markers,
-                          with_mesh=props.with_mesh)
+                          with_mesh=props.with_mesh, root_motion=props.root_motion)
     if props.target == "EXISTING":
         target = props.armature
         if target is None or target.type != "ARMATURE":
             raise DanceNetError("No target armature: pick one in the DanceNet panel, or choose New Rig")
         placement.armature = target.name
+        from . import keyframes  # needs scipy (and the core's FK): importable once dependencies are in
+
         placement.bone_map = _chosen_map(props)
-        resolve_map(target, placement.bone_map)  # fail now, not after minutes of generation
+        hips = resolve_map(target, placement.bone_map)[0]["pelvis"]  # fail now, not after minutes of generation
+        if props.root_motion == "root-bone" and keyframes.root_bone_of(target, hips) is None:
+            raise DanceNetError(f"Root Bone motion needs a bone above the hips; '{hips}' of '{target.name}' has "
+                                "none: choose New Rig (it gets a root bone) or another Root Motion")
     # A style the installed model no longer has reads back as "": fall back to Auto.
     style = props.style or "auto"
     request = GenerationRequest(song, style, props.seed, props.temperature, props.takes, props.footfix,
@@ -360,6 +366,7 @@ def _keep_users_action(target: bpy.types.Object) -> str | None:
 
 def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
     """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take."""
+
     from . import keyframes  # needs scipy and torch (the core's FK): importable only once dependencies are in
 
     scene = context.scene
@@ -383,7 +390,8 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
     frame_start = round(song_zero_frame(strip, fps) + result.start_s * fps)
     notes: list[str] = []
     if target is None:
-        target = rig.create_rig(context, RIG_NAME, result.motions[0].skeleton, place.with_mesh)
+        target = rig.create_rig(context, RIG_NAME, result.motions[0].skeleton, place.with_mesh,
+                                root_bone=place.root_motion == "root-bone")
         bone_map, skipped = {n: n for n in result.motions[0].skeleton.names}, []
         props = getattr(scene, "dancenet", None)
         if props is not None:  # the next Generate adds takes to this rig instead of building another
@@ -403,7 +411,7 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
     frames = 0
     for k, motion in enumerate(result.motions, start=1):
         name = _action_name(req.song, result.style, req.seed, k, len(result.motions))
-        action = keyframes.apply_motion(target, motion, bone_map, name, frame_start, fps)
+        action = keyframes.apply_motion(target, motion, bone_map, name, frame_start, fps, place.root_motion)
         action[ACTION_PROP] = True
         actions.append(action)
         frames = max(frames, round(motion.duration * fps))

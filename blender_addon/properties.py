@@ -69,6 +69,16 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     )
     part_start: IntProperty(name="From Frame", default=1, description="First timeline frame to dance")
     part_end: IntProperty(name="To Frame", default=250, description="Last timeline frame to dance")
+    root_motion: EnumProperty(
+        name="Root Motion",
+        items=[
+            ("travel", "Travelling", "The dancer moves across the floor as danced"),
+            ("in-place", "In Place", "The hips' path across the floor removed; turns and height kept"),
+            ("root-bone", "Root Bone", "A root bone on the floor carries the path and heading (game engines); "
+             "a new rig gets one"),
+        ],
+        default="travel",
+    )
     target: EnumProperty(
         name="Target",
         items=[

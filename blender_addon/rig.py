@@ -127,11 +127,13 @@ def create_rig(
     name: str = "DanceNet Rig",
     skeleton: Skeleton = DEFAULT_SKELETON,
     with_mesh: bool = True,
+    root_bone: bool = False,
 ) -> bpy.types.Object:
     """A new armature object (and a mannequin mesh child) in the active collection; returns the armature.
 
     Bone heads sit on the joints, tails point at the main child (or an end site), every pose bone uses
-    quaternions, and no bone is connected, so the root's location is the only translation keyed.
+    quaternions, and no bone is connected, so the root's location is the only translation keyed. With
+    `root_bone`, a `root` bone on the floor under the hips is their parent (root motion for game engines).
     """
     collection = context.collection or context.scene.collection
     view_layer = context.view_layer
@@ -139,6 +141,7 @@ def create_rig(
         bpy.ops.object.mode_set(mode="OBJECT")
 
     data = bpy.data.armatures.new(name)
+    data[rigdef.RIG_PROP] = True
     data.display_type = "OCTAHEDRAL"
     rig = bpy.data.objects.new(name, data)
     rig.rotation_euler = rigdef.OBJECT_ROTATION
@@ -152,6 +155,10 @@ def create_rig(
     with context.temp_override(active_object=rig, object=rig):
         bpy.ops.object.mode_set(mode="EDIT")
         bones = []
+        floor = None
+        if root_bone:
+            floor = data.edit_bones.new(rigdef.ROOT_BONE)
+            floor.head, floor.tail = (0.0, 0.0, 0.0), rigdef.ROOT_TAIL
         for j, bone_name in enumerate(skeleton.names):
             eb = data.edit_bones.new(bone_name)
             eb.head = heads[j]
@@ -161,6 +168,8 @@ def create_rig(
             eb.use_deform = True
             if skeleton.parents[j] >= 0:
                 eb.parent = bones[skeleton.parents[j]]
+            else:
+                eb.parent = floor
             bones.append(eb)
         bpy.ops.object.mode_set(mode="OBJECT")
     for pb in rig.pose.bones:

@@ -30,6 +30,12 @@ _NO_DIRECTION_CHILD = frozenset({"head"})
 # Eyes look forward rather than continuing the head-to-eye offset.
 _TAIL_OVERRIDE = {"left_eye_smplhf": (0.0, 0.0, 0.025), "right_eye_smplhf": (0.0, 0.0, 0.025)}
 
+# Set on the armature data of rigs DanceNet builds (its own rules apply to them, e.g. a root bone at rest).
+RIG_PROP = "dancenet_rig"
+# Name and tail (core frame: on the floor, pointing forward) of the root bone a rig for root motion gets.
+ROOT_BONE = "root"
+ROOT_TAIL = (0.0, 0.0, 0.3)
+
 # Joints a bone map must name (and the rig must have) for a dance to read as that dance.
 REQUIRED_JOINTS: tuple[str, ...] = (
     "pelvis", "spine1", "neck", "head",

@@ -14,6 +14,7 @@ from .outputs import check_folder_writable, refuse_overwrite, safe_stem
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from .generate import DEFAULT_TEMPERATURE
     from .motion import FRAME_RATES
+    from .rootmotion import ROOT_MODES
 
     p = sub.add_parser("generate", help="generate a dance for a song (BVH, .npz and a JSON summary)")
     p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
@@ -25,6 +26,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--takes", type=int, default=1, help="number of different dances to generate")
     p.add_argument("--fps", type=int, choices=FRAME_RATES, default=None,
                    help="frame rate of the files (slerp-resampled; default: the model's own 25)")
+    p.add_argument("--root-motion", choices=ROOT_MODES, default="travel",
+                   help="travel (as danced), in-place (no horizontal path, heading kept) or root-bone (a 'root' "
+                        "joint on the floor carries path and heading; the .npz keeps the dance as danced)")
     p.add_argument("--start", type=float, default=0.0, metavar="SECONDS",
                    help="dance from this many seconds into the song (default: its beginning)")
     p.add_argument("--end", type=float, default=None, metavar="SECONDS",
@@ -51,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
     from .bvh import write_bvh
     from .generate import generate_dance
+    from .rootmotion import apply_mode, write_root_bone_bvh
 
     stem = safe_stem(args.song)
     check_folder_writable(args.out)
@@ -78,10 +83,12 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
     if args.fps is not None:
         result.motions = [m.resampled(args.fps) for m in result.motions]
+    result.motions = [apply_mode(m, args.root_motion) for m in result.motions]
+    write_dance_bvh = write_root_bone_bvh if args.root_motion == "root-bone" else write_bvh
     files = []
     t = time.perf_counter()
     for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-        write_bvh(args.out / f"{name}.bvh", motion)
+        write_dance_bvh(args.out / f"{name}.bvh", motion)
         motion.save(args.out / f"{name}.npz")
         files += [f"{name}.bvh", f"{name}.npz"]
     result.timings["writing_s"] = time.perf_counter() - t
@@ -107,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "temperature": args.temperature,
         "footfix": not args.no_footfix,
+        "root_motion": args.root_motion,
         "beats": len(result.beat_times),
         "downbeats": len(result.downbeat_times),
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},

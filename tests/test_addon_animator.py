@@ -85,15 +85,17 @@ def test_frames_where_the_song_is_not_heard_are_refused(scene, addon, song):  # 
     assert snapshot(scene) == before
 
 
-def test_batch_start_and_end(addon, tmp_path, capsys):  # noqa: F811
+def test_batch_start_end_and_root_motion(addon, tmp_path, capsys):  # noqa: F811
     from blender_addon import batch
+    from dancenet_core.bvh import read_bvh
 
     song_path = write_song(tmp_path / "four.wav", 4.0)
-    code = batch.main([str(song_path), "--out", str(tmp_path / "out"), "--fps", "30", "--start", "1", "--end", "2.5"],
-                      generator=make_fake_generator())
+    code = batch.main([str(song_path), "--out", str(tmp_path / "out"), "--fps", "30", "--start", "1", "--end", "2.5",
+                       "--root-motion", "root-bone", "--bvh"], generator=make_fake_generator())
     assert code == 0, capsys.readouterr().out
     assert CALLS[-1]["start_s"] == 1.0 and CALLS[-1]["end_s"] == 2.5
     assert keyed_range() == (31, 75)  # the strip at frame 1, second 1 heard at frame 31, 1.5 s = 45 frames
+    assert read_bvh(tmp_path / "out" / "four" / "four.bvh").names[:2] == ("root", "pelvis")
 
 
 # --- the shipped model ---------------------------------------------------------------------------------
@@ -130,3 +132,63 @@ def test_shipped_model_dances_the_heard_part_of_a_trimmed_strip(real_scene, tmp_
     marks = np.array([m.frame for m in sc.timeline_markers])
     assert len(marks) >= 8 and marks.min() >= 78 and marks.max() <= 197
     assert np.abs(marks[:, None] - clicks[None]).min(axis=1).max() <= 1.0  # every beat marker on a heard click
+
+
+# --- root motion ---------------------------------------------------------------------------------------
+
+
+def test_root_bone_and_in_place_keep_the_dance_where_it_belongs(scene, addon, song, tmp_path):  # noqa: F811
+    from test_addon import fk_world, world_heads
+    from test_addon_doubles import synthetic_motion
+
+    from dancenet_core.rootmotion import in_place, read_dance_bvh
+    from dancenet_core.skeleton import JOINT_NAMES
+
+    scene.render.fps = 30  # the fake dances at 30 fps: no resampling, so the poses are exact
+    props = scene.dancenet
+    props.music_source, props.music_file, props.root_motion = "FILE", str(song), "root-bone"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    assert rig.data.bones["pelvis"].parent.name == "root"
+    dance = synthetic_motion(2.0, seed=0)
+    travelling = fk_world(dance)
+    for f in (0, 13, 59):
+        scene.frame_set(scene.frame_start + f)
+        assert np.abs(world_heads(rig, JOINT_NAMES) - travelling[f]).max() < 1e-3  # the same dance...
+        root = np.array(rig.matrix_world @ rig.pose.bones["root"].head)
+        assert abs(root[2]) < 1e-6 and np.abs(root[:2] - travelling[f, 0, :2]).max() < 1e-3  # ...root under the hips
+    # BVH and FBX exports carry the root bone: both read back as the travelling dance.
+    assert bpy.ops.dancenet.export_bvh(filepath=str(tmp_path / "d.bvh")) == {"FINISHED"}
+    assert bpy.ops.dancenet.export_fbx(filepath=str(tmp_path / "d.fbx")) == {"FINISHED"}
+    back = read_dance_bvh(tmp_path / "d.bvh")
+    assert np.abs(back.positions() - dance.positions()).max() < 1e-3
+    before = set(bpy.data.objects)
+    bpy.ops.import_scene.fbx(filepath=str(tmp_path / "d.fbx"))
+    fbx = next(o for o in set(bpy.data.objects) - before if o.type == "ARMATURE")
+    assert fbx.data.bones["pelvis"].parent.name == "root"
+    for f in (0, 40):
+        scene.frame_set(scene.frame_start + f + 1)  # Blender's FBX importer starts one frame later
+        assert np.abs(world_heads(fbx, JOINT_NAMES) - travelling[f]).max() < 1e-3
+        assert np.abs(np.array(fbx.matrix_world @ fbx.pose.bones["root"].head)[:2] - travelling[f, 0, :2]).max() < 1e-3
+
+    # In Place on the same rig: the hips stay over the world origin, the root bone rests.
+    props.root_motion = "in-place"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    spot = fk_world(in_place(dance))
+    for f in (0, 37):
+        scene.frame_set(scene.frame_start + f)
+        assert np.abs(world_heads(rig, JOINT_NAMES) - spot[f]).max() < 1e-3
+        assert np.abs(np.array(rig.matrix_world @ rig.pose.bones["pelvis"].head)[:2]).max() < 1e-6
+        assert np.abs(np.array(rig.pose.bones["root"].matrix_basis) - np.eye(4)).max() < 1e-6
+
+
+def test_root_bone_on_a_rig_without_one_is_refused(scene, addon, song):  # noqa: F811
+    from test_addon import snapshot
+
+    scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}  # a rig without a root bone, now the target
+    scene.dancenet.root_motion = "root-bone"
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError, match="Root Bone motion needs a bone above the hips; 'pelvis'"):
+        bpy.ops.dancenet.generate()
+    assert snapshot(scene) == before

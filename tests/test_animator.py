@@ -92,3 +92,28 @@ def test_bad_parts_are_one_line_errors(song: Path, tmp_path: Path, capsys, args,
     assert cli_main(["generate", str(song), "-o", str(tmp_path), *args]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err and not list(tmp_path.glob("*.bvh"))
+
+
+def test_root_motion_modes_carry_the_same_dance(song: Path, tmp_path: Path) -> None:
+    from dancenet_core.rootmotion import read_dance_bvh
+
+    travel = generate(song, tmp_path / "travel", "--fps", "30")
+    path = np.linalg.norm(np.ptp(travel.root_positions[:, [0, 2]], axis=0))
+    assert path > 0.05  # the shipped model's dance does travel, so the modes below differ from it
+
+    flat = generate(song, tmp_path / "flat", "--fps", "30", "--root-motion", "in-place")
+    np.testing.assert_allclose(flat.root_positions[:, [0, 2]], 0.0, atol=1e-6)
+    np.testing.assert_allclose(flat.root_positions[:, 1], travel.root_positions[:, 1], atol=1e-5)
+    np.testing.assert_allclose(flat.rotations, travel.rotations, atol=1e-5)  # heading and turns kept
+    np.testing.assert_allclose(read_dance_bvh(tmp_path / "flat" / "clicks.bvh").root_positions[:, [0, 2]], 0.0,
+                               atol=1e-5)
+
+    generate(song, tmp_path / "bone", "--fps", "30", "--root-motion", "root-bone")
+    data = read_bvh(tmp_path / "bone" / "clicks.bvh")
+    assert data.names[:2] == ("root", "pelvis") and data.parents[1] == 0 and data.fps == 30
+    world = data.world_positions()
+    np.testing.assert_allclose(world[:, 0, 1], 0.0, atol=1e-6)  # the root stays on the floor...
+    np.testing.assert_allclose(world[:, 0, [0, 2]], travel.root_positions[:, [0, 2]], atol=1e-5)  # ...under the hips
+    # Hips and every joint are where the travelling dance puts them (BVH keeps 6 decimals).
+    np.testing.assert_allclose(read_dance_bvh(tmp_path / "bone" / "clicks.bvh").positions(), travel.positions(),
+                               atol=1e-4)
