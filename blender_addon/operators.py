@@ -25,21 +25,23 @@ def _redraw(context: bpy.types.Context) -> None:
                 area.tag_redraw()
 
 
-class DANCENET_OT_generate(bpy.types.Operator):
-    """Generate a dance to the chosen song (runs in the background; Esc cancels and changes nothing)"""
+class _Generate:
+    """Generation on a worker thread with progress, Esc to cancel; subclasses say what to generate (`plan`)."""
 
-    bl_idname = "dancenet.generate"
-    bl_label = "Generate Dance"
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return not context.window_manager.dancenet.running
 
+    def plan(self, context: bpy.types.Context) -> pipeline.Plan:
+        """What to generate and where it goes, from the panel's settings."""
+        return pipeline.prepare(context.scene)
+
     def execute(self, context: bpy.types.Context) -> set[str]:
         """The blocking path: scripts, batch mode, and any call without a window to stay responsive in."""
         try:
-            plan = pipeline.prepare(context.scene)
+            plan = self.plan(context)
             applied = pipeline.generate_now(context, plan, pipeline.load_generator())
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
@@ -51,7 +53,7 @@ class DANCENET_OT_generate(bpy.types.Operator):
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            plan = pipeline.prepare(context.scene)
+            plan = self.plan(context)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -109,6 +111,29 @@ class DANCENET_OT_generate(bpy.types.Operator):
         """Esc, the Cancel button, or Blender ending the operator (file load): drop the job, touch nothing."""
         self._job.cancel()
         self._end(context)
+
+
+class DANCENET_OT_generate(_Generate, bpy.types.Operator):
+    """Generate a dance to the chosen song (runs in the background; Esc cancels and changes nothing)"""
+
+    bl_idname = "dancenet.generate"
+    bl_label = "Generate Dance"
+
+
+class DANCENET_OT_continue(_Generate, bpy.types.Operator):
+    """Keep the active take up to the current frame and dance the rest anew (new seed), flowing on from it"""
+
+    bl_idname = "dancenet.continue_dance"
+    bl_label = "Continue From Here"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        rig_obj = export_target(context)
+        anim = rig_obj.animation_data if rig_obj is not None else None
+        return super().poll(context) and anim is not None and pipeline.take_info(anim.action) is not None
+
+    def plan(self, context: bpy.types.Context) -> pipeline.Plan:
+        return pipeline.prepare_continue(context.scene, export_target(context))
 
 
 class DANCENET_OT_cancel(bpy.types.Operator):
@@ -280,6 +305,7 @@ class DANCENET_OT_install_dependencies(bpy.types.Operator):
 
 CLASSES = (
     DANCENET_OT_generate,
+    DANCENET_OT_continue,
     DANCENET_OT_cancel,
     DANCENET_OT_export_bvh,
     DANCENET_OT_export_fbx,

@@ -82,6 +82,7 @@ class _DanceNetPanel:
             row.scale_y = 1.5
             row.enabled = not missing
             row.operator("dancenet.generate", icon="PLAY_SOUND")
+            layout.operator("dancenet.continue_dance", icon="FF")
 
         rig_obj = operators.export_target(context)
         if rig_obj is not None and rig_obj.animation_data and rig_obj.animation_data.action:

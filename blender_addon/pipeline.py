@@ -29,6 +29,9 @@ BEAT_MARKER = "·"
 MARKERS_PROP = "dancenet_markers"
 # Set on the actions the add-on writes, to tell them from a user's own action on the same rig.
 ACTION_PROP = "dancenet"
+# On each take's action: how it was made (JSON) and its dance at the model's rate, so it can be continued.
+TAKE_PROP = "dancenet_take"
+MOTION_PROP = "dancenet_motion"
 RIG_NAME = "DanceNet Dancer"
 _AUDIO_SUFFIXES = frozenset(".wav .mp3 .ogg .oga .flac .m4a .aac .aif .aiff .opus .wma .mp4 .webm".split())
 
@@ -67,11 +70,14 @@ class GenerationRequest:
     footfix: bool = True
     start_s: float = 0.0  # the part of the song to dance, in the song's own seconds
     end_s: float | None = None
+    continue_from: Any = None  # a take's Motion to keep up to `at_s` seconds (Continue From Here)
+    at_s: float = 0.0
 
     def kwargs(self) -> dict[str, Any]:
+        extra = {"continue_from": self.continue_from, "at_s": self.at_s} if self.continue_from is not None else {}
         return {
             "song": self.song, "style": self.style, "seed": self.seed, "temperature": self.temperature,
-            "takes": self.takes, "footfix": self.footfix, "start_s": self.start_s, "end_s": self.end_s,
+            "takes": self.takes, "footfix": self.footfix, "start_s": self.start_s, "end_s": self.end_s, **extra,
         }  # fmt: skip
 
 
@@ -86,6 +92,8 @@ class Placement:
     add_markers: bool = True
     with_mesh: bool = True
     root_motion: str = "travel"  # dancenet_core.rootmotion.ROOT_MODES
+    frame_start: int | None = None  # a continued take starts where the take it continues did
+    continues: str | None = None  # the action a continued take grows from
 
 
 @dataclass
@@ -286,6 +294,66 @@ def _action_name(song: Path, style: str, seed: int, take: int, takes: int) -> st
     return f"{name} · take {take}" if takes > 1 else name
 
 
+def take_info(action: bpy.types.Action | None) -> dict[str, Any] | None:
+    """How a DanceNet take was made, or None for any other action (a user's, or one without the record)."""
+    if action is None or TAKE_PROP not in action or MOTION_PROP not in action:
+        return None
+    return json.loads(action[TAKE_PROP])
+
+
+def _store_take(action: bpy.types.Action, motion: Any, info: dict[str, Any]) -> None:
+    """Keep the take's dance (float32, ~0.7 MB a minute) and settings on its action, saved with the file."""
+    import numpy as np
+
+    action[TAKE_PROP] = json.dumps(info)
+    action[MOTION_PROP] = {
+        "rotations": motion.rotations.astype(np.float32).ravel(),
+        "root": motion.root_positions.astype(np.float32).ravel(),
+        "offsets": motion.skeleton.offsets.astype(np.float32).ravel(), "fps": float(motion.fps),
+    }  # fmt: skip
+
+
+def take_motion(action: bpy.types.Action) -> Any:
+    """The dance stored on a take (dancenet_core.motion.Motion, at the model's frame rate)."""
+    import numpy as np
+
+    from dancenet_core.motion import Motion
+    from dancenet_core.skeleton import Skeleton
+
+    d = action[MOTION_PROP]
+    skeleton = Skeleton(np.asarray(d["offsets"], np.float64).reshape(-1, 3))
+    rotations = np.asarray(d["rotations"], np.float64).reshape(-1, skeleton.num_joints, 3)
+    return Motion(rotations, np.asarray(d["root"], np.float64).reshape(-1, 3), d["fps"], skeleton)
+
+
+def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -> Plan:
+    """A Plan that keeps the rig's active take up to the current frame and dances the rest with a new seed."""
+    action = rig_obj.animation_data.action if rig_obj is not None and rig_obj.animation_data else None
+    info = take_info(action)
+    if info is None:
+        raise DanceNetError("Continue From Here needs a rig whose active action is a DanceNet take: "
+                            "generate a dance first")
+    missing = deps.missing()
+    if missing:
+        raise DanceNetError(f"Missing Python packages: {', '.join(missing)}. Install them from the DanceNet "
+                            "add-on preferences")
+    song = check_song(info["song"])
+    fps = scene.render.fps / scene.render.fps_base
+    first, last = (round(f) for f in action.frame_range)
+    frame = scene.frame_current
+    if not first + 2 <= frame <= last + 1 - fps:  # two kept frames give a velocity; a second left to dance
+        raise DanceNetError(f"Put the current frame inside the take, from frame {first + 2} to {last + 1 - round(fps)} "
+                            "(the dance is kept before it and danced anew from it)")
+    continued = [a for a in bpy.data.actions if (take_info(a) or {}).get("continues") == action.name]
+    request = GenerationRequest(song, info["style"], info["seed"] + 1 + len(continued), info["temperature"], 1,
+                                info["footfix"], info["start_s"], info["end_s"], take_motion(action),
+                                (frame - first) / fps)
+    placement = Placement(armature=rig_obj.name, bone_map=bonemap.BoneMap(action.name, info["bone_map"]),
+                          add_markers=False, root_motion=info["root_motion"], frame_start=first,
+                          continues=action.name)
+    return Plan(request, placement)
+
+
 def strip_playing(scene: bpy.types.Scene, song: Path) -> bpy.types.Strip | None:
     """The sound strip already playing `song` (a second take must not add a second copy), if any."""
     if scene.sequence_editor is None:
@@ -384,10 +452,13 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
             raise DanceNetError(f"The sound strip '{place.strip}' is gone; nothing was changed")
 
     fps = scene.render.fps / scene.render.fps_base
-    if strip is None:
-        strip = _song_strip(scene, req.song, round(place.song_frame))
-    # The dance starts where the part it was made for is heard (the strip's first audible frame by default).
-    frame_start = round(song_zero_frame(strip, fps) + result.start_s * fps)
+    if place.frame_start is not None:
+        frame_start = place.frame_start
+    else:
+        if strip is None:
+            strip = _song_strip(scene, req.song, round(place.song_frame))
+        # The dance starts where the part it was made for is heard (the strip's first audible frame by default).
+        frame_start = round(song_zero_frame(strip, fps) + result.start_s * fps)
     notes: list[str] = []
     if target is None:
         target = rig.create_rig(context, RIG_NAME, result.motions[0].skeleton, place.with_mesh,
@@ -411,8 +482,15 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
     frames = 0
     for k, motion in enumerate(result.motions, start=1):
         name = _action_name(req.song, result.style, req.seed, k, len(result.motions))
+        if place.continues is not None:
+            name = f"{name} · from frame {frame_start + round(req.at_s * fps)}"
         action = keyframes.apply_motion(target, motion, bone_map, name, frame_start, fps, place.root_motion)
         action[ACTION_PROP] = True
+        _store_take(action, motion, {
+            "song": str(req.song), "style": result.style, "seed": req.seed, "temperature": req.temperature,
+            "footfix": req.footfix, "start_s": result.start_s, "end_s": result.start_s + result.duration_s,
+            "root_motion": place.root_motion, "bone_map": bone_map, "continues": place.continues,
+        })  # fmt: skip
         actions.append(action)
         frames = max(frames, round(motion.duration * fps))
     anim = target.animation_data

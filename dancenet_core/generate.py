@@ -19,7 +19,7 @@ from scipy.ndimage import gaussian_filter1d
 from .data.build import music_at_frames
 from .errors import DanceNetError
 from .motion import Motion
-from .representation import FeatureLayout, decode
+from .representation import FeatureLayout, decode, encode
 
 if TYPE_CHECKING:
     from .features import MusicAnalysis
@@ -93,7 +93,7 @@ def choose_style(
 
 
 def sample_dance(bundle, cond: np.ndarray, first: np.ndarray, sampling, progress=None,  # noqa: ANN001
-                 should_stop=None) -> list[np.ndarray]:  # noqa: ANN001
+                 should_stop=None, prefix: np.ndarray | None = None) -> list[np.ndarray]:  # noqa: ANN001
     """Sample frames for each take and return them unnormalised [T, D], lightly smoothed.
 
     Each frame's mixture draw adds independent noise; a Gaussian of one frame (40 ms at 25 fps; the
@@ -102,7 +102,8 @@ def sample_dance(bundle, cond: np.ndarray, first: np.ndarray, sampling, progress
     """
     from .model.sampler import CachedSampler
 
-    frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop)
+    frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop,
+                                                prefix=prefix)
     return [finish_frames(bundle, take) for take in frames]
 
 
@@ -122,6 +123,23 @@ def check_part(start_s: float, end_s: float | None) -> None:
         raise DanceNetError(f"start must be 0 or more seconds into the song, got {start_s}")
     if end_s is not None and not (np.isfinite(end_s) and end_s >= start_s + MIN_PART_S):
         raise DanceNetError(f"end ({end_s} s) must be at least {MIN_PART_S:g} s after start ({start_s} s)")
+
+
+def kept_frames(bundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:  # noqa: ANN001
+    """The dance kept up to `at_s` seconds as the model's normalised frames [K, D] at its frame rate, or a
+    one-line error when there is not enough of it before `at_s`, or of the song after."""
+    fps = bundle.model.cfg.fps
+    if kept.skeleton.names != bundle.skeleton.names:
+        raise DanceNetError("only a DanceNet dance (its 55 joints) can be continued")
+    if not (np.isfinite(at_s) and 1.5 / fps <= at_s <= kept.duration + 0.5 / fps):
+        raise DanceNetError(f"the dance can be continued from {2 / fps:g} s to its end ({kept.duration:.2f} s), "
+                            f"got {at_s}")
+    kept = kept.resampled(fps)
+    k = min(int(round(at_s * fps)), kept.num_frames)
+    if frames - k < MIN_PART_S * fps:
+        raise DanceNetError(f"continuing at {at_s:g} s leaves less than {MIN_PART_S:g} s of the part of the song "
+                            f"to dance ({frames / fps:.1f} s)")
+    return bundle.normalizer.normalize(encode(kept[:k]))
 
 
 def song_part(duration_s: float, start_s: float, end_s: float | None) -> tuple[float, float]:
@@ -178,10 +196,14 @@ def generate_dance(
     weights: str | None = None,
     start_s: float = 0.0,
     end_s: float | None = None,
+    continue_from: Motion | None = None,
+    at_s: float = 0.0,
 ) -> GenerationResult:
     """Generate `takes` dances for a song, or for its part from `start_s` to `end_s` seconds (the music
-    encoder then hears only that part, so the dance follows what is played). Same arguments, same seed:
-    the same dance, bit for bit."""
+    encoder then hears only that part, so the dance follows what is played). With `continue_from` (a dance
+    to that part), its first `at_s` seconds are kept and the rest is danced anew after them: the model
+    hears the kept frames as its own, so the join flows. Same arguments, same seed: the same dance, bit
+    for bit."""
     from .features import FPS as MUSIC_FPS
     from .features import analyze_music
     from .model.sampler import Sampling, music_conditioning
@@ -212,13 +234,17 @@ def generate_dance(
     rng = np.random.default_rng(seed)
     starts = bundle.start_frames[chosen]
     first = bundle.normalizer.normalize(starts[rng.integers(len(starts), size=takes)])
+    prefix = None
+    if continue_from is not None:
+        prefix = np.repeat(kept_frames(bundle, continue_from, at_s, n)[None], takes, axis=0)
+        first = prefix[:, 0]
     timings["music_encoder_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
     report("dancing", 0.0)
     try:
         takes_feats = sample_dance(bundle, cond, first, Sampling(temperature, rng),
-                                   progress=lambda f: report("dancing", f), should_stop=cancelled)
+                                   progress=lambda f: report("dancing", f), should_stop=cancelled, prefix=prefix)
     except InterruptedError as e:
         raise GenerationCancelled from e
     timings["generation_s"] = time.perf_counter() - t
@@ -233,7 +259,13 @@ def generate_dance(
         takes_feats = [fixer(f) for f in takes_feats]
         timings["footfix_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]
+    if prefix is None:
+        motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]
+    else:
+        from .continuation import join_kept
+
+        kept = continue_from.resampled(cfg.fps)
+        motions = [join_kept(kept, f, prefix.shape[1], bundle.skeleton) for f in takes_feats]
     contacts = [f[:, layout.contacts] for f in takes_feats]
     timings["decode_s"] = time.perf_counter() - t
     report("done", 1.0)

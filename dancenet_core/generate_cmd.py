@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from .atomic import write_text
+from .errors import DanceNetError
 from .outputs import check_folder_writable, refuse_overwrite, safe_stem
 
 
@@ -33,6 +34,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dance from this many seconds into the song (default: its beginning)")
     p.add_argument("--end", type=float, default=None, metavar="SECONDS",
                    help="dance up to this many seconds into the song (default: its end)")
+    p.add_argument("--continue", dest="continue_from", type=Path, default=None, metavar="BVH",
+                   help="keep this dance (a BVH from `dancenet generate` for the same song and --start) up to "
+                        "--at and dance the rest anew after it")
+    p.add_argument("--at", type=float, default=None, metavar="SECONDS",
+                   help="with --continue: seconds into the kept dance where the new dancing starts")
     p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
     p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
@@ -50,6 +56,22 @@ def _outputs(args: argparse.Namespace, stem: str) -> list[Path]:
     return [args.out / f"{n}{s}" for n in _names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
 
 
+def _kept_dance(args: argparse.Namespace):  # noqa: ANN202 (Motion, imported late)
+    """The dance to continue, read and checked against --at before any music is analysed."""
+    if args.continue_from is None:
+        if args.at is not None:
+            raise DanceNetError("--at goes with --continue BVH (the dance to continue)")
+        return None
+    from .rootmotion import read_dance_bvh
+
+    if args.at is None:
+        raise DanceNetError("--continue needs --at SECONDS: where in the kept dance the new dancing starts")
+    kept = read_dance_bvh(args.continue_from)
+    if not 0 < args.at <= kept.duration:
+        raise DanceNetError(f"--at must be within the kept dance (0 to {kept.duration:.2f} s), got {args.at}")
+    return kept
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -58,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from .rootmotion import apply_mode, write_root_bone_bvh
 
     stem = safe_stem(args.song)
+    kept = _kept_dance(args)
     check_folder_writable(args.out)
     if not args.overwrite:
         refuse_overwrite(_outputs(args, stem))
@@ -78,10 +101,16 @@ def run(args: argparse.Namespace) -> int:
         result = generate_dance(args.song, style=args.style, seed=args.seed, temperature=args.temperature,
                                 takes=args.takes, footfix=not args.no_footfix, progress=progress,
                                 weights=str(args.weights) if args.weights else None, start_s=args.start,
-                                end_s=args.end)
+                                end_s=args.end, continue_from=kept, at_s=args.at or 0.0)
     finally:
         bar.close()
-    if args.fps is not None:
+    if kept is not None:  # the kept frames as they were, at the kept dance's rate (or --fps)
+        from .continuation import keep_original
+
+        join = round(args.at * result.motions[0].fps) / result.motions[0].fps
+        kept = kept.resampled(args.fps or kept.fps)
+        result.motions = [keep_original(kept, m, join) for m in result.motions]
+    elif args.fps is not None:
         result.motions = [m.resampled(args.fps) for m in result.motions]
     result.motions = [apply_mode(m, args.root_motion) for m in result.motions]
     write_dance_bvh = write_root_bone_bvh if args.root_motion == "root-bone" else write_bvh
@@ -115,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
         "temperature": args.temperature,
         "footfix": not args.no_footfix,
         "root_motion": args.root_motion,
+        "continued_from": str(args.continue_from) if args.continue_from else None,
+        "at_s": args.at,
         "beats": len(result.beat_times),
         "downbeats": len(result.downbeat_times),
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},

@@ -192,3 +192,94 @@ def test_root_bone_on_a_rig_without_one_is_refused(scene, addon, song):  # noqa:
     with pytest.raises(RuntimeError, match="Root Bone motion needs a bone above the hips; 'pelvis'"):
         bpy.ops.dancenet.generate()
     assert snapshot(scene) == before
+
+
+# --- continue from here ----------------------------------------------------------------------------------
+
+
+def evaluated_heads(sc, rig, frames) -> np.ndarray:
+    """World joint heads [F, 55, 3] of `rig` at the given frames."""
+    from test_addon import world_heads
+
+    from dancenet_core.skeleton import JOINT_NAMES
+
+    out = []
+    for f in frames:
+        sc.frame_set(f)
+        out.append(world_heads(rig, JOINT_NAMES))
+    return np.array(out)
+
+
+def test_continue_from_here_keeps_the_take_before_the_frame(scene, addon, song):  # noqa: F811
+    scene.render.fps = 30
+    props = scene.dancenet
+    props.music_source, props.music_file, props.style, props.seed = "FILE", str(song), "jazz", 4
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    first_take = rig.animation_data.action
+    before = evaluated_heads(scene, rig, range(1, 61))
+    keys_before = {fc.data_path + str(fc.array_index): [tuple(k.co) for k in fc.keyframe_points]
+                   for fc in first_take.layers[0].strips[0].channelbag(first_take.slots[0]).fcurves}
+    scene.frame_set(31)
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
+    call = CALLS[-1]
+    assert call["seed"] == 5 and call["style"] == "jazz" and call["at_s"] == pytest.approx(1.0)
+    new_take = rig.animation_data.action
+    assert new_take != first_take and new_take.name.endswith("seed 5 · from frame 31")
+    after = evaluated_heads(scene, rig, range(1, 61))
+    assert np.abs(after[:30] - before[:30]).max() < 1e-4  # frames 1-30 kept
+    assert np.abs(after[30:] - before[30:]).max() > 0.05  # from frame 31 on, another dance
+    # The first take is untouched (same keys), kept with a fake user; a second continue takes the next seed.
+    assert first_take.use_fake_user and keys_before == {
+        fc.data_path + str(fc.array_index): [tuple(k.co) for k in fc.keyframe_points]
+        for fc in first_take.layers[0].strips[0].channelbag(first_take.slots[0]).fcurves}
+    rig.animation_data.action = first_take
+    scene.frame_set(20)
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"} and CALLS[-1]["seed"] == 6
+
+
+def test_continue_needs_a_take_and_a_frame_inside_it(scene, addon, song):  # noqa: F811
+    from test_addon import snapshot
+
+    assert not bpy.ops.dancenet.continue_dance.poll()  # no rig, no take
+    scene.render.fps = 30
+    scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    scene.frame_set(59)  # the take is frames 1-60: less than a second would be left to dance
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError, match="Put the current frame inside the take, from frame 3 to 31"):
+        bpy.ops.dancenet.continue_dance()
+    assert snapshot(scene) == before
+
+
+def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_path, capsys):
+    """The real dance on a new rig with a root bone, continued from frame 97: kept before, flowing after."""
+    from blender_addon import pipeline
+
+    sc = real_scene
+    props = sc.dancenet
+    props.music_file, props.seed, props.root_motion = str(click_song(tmp_path / "clicks.wav")), 2, "root-bone"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    first_take = rig.animation_data.action
+    assert keyed_range() == (1, 192)
+    before = evaluated_heads(sc, rig, range(1, 193))
+    travelled = np.linalg.norm(np.ptp(before[:, 0, :2], axis=0))
+    sc.frame_set(60)
+    root = np.array(rig.matrix_world @ rig.pose.bones["root"].head)
+    assert travelled > 0.05 and abs(root[2]) < 1e-5 and np.abs(root[:2] - before[59, 0, :2]).max() < 1e-4
+
+    sc.frame_set(97)
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
+    assert rig.animation_data.action != first_take and pipeline.take_info(rig.animation_data.action)["seed"] == 3
+    after = evaluated_heads(sc, rig, range(1, 193))
+    assert np.abs(after[:96] - before[:96]).max() < 1e-3  # frames 1-96 kept
+    assert np.abs(after[110:] - before[110:]).max() > 0.05  # then a new dance
+    v = np.diff(after, axis=0)
+    step = np.linalg.norm(v, axis=-1).max(axis=1)
+    dv = np.linalg.norm(np.diff(v, axis=0), axis=-1).max(axis=1)
+    join = {"step": step[95], "step_p95": np.percentile(step, 95), "dv": dv[94:96].max(),
+            "dv_p95": np.percentile(dv, 95)}
+    assert join["step"] <= join["step_p95"] and join["dv"] <= join["dv_p95"], join
+    with capsys.disabled():
+        print(f"\nBlender join at frame 97 (m/frame at 24 fps): {({k: round(float(x), 4) for k, x in join.items()})}")

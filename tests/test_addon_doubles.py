@@ -76,9 +76,11 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
         weights: str | None = None,
         start_s: float = 0.0,
         end_s: float | None = None,
+        continue_from: Motion | None = None,
+        at_s: float = 0.0,
     ) -> GenerationResult:
         CALLS.append({"song": Path(song), "style": style, "seed": seed, "takes": takes, "start_s": start_s,
-                      "end_s": end_s})
+                      "end_s": end_s, "continue_from": continue_from, "at_s": at_s})
         end = song_seconds(Path(song)) if end_s is None else min(end_s, song_seconds(Path(song)))
         seconds = end - start_s
         for k in range(steps):
@@ -91,8 +93,15 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
         chosen = max(probabilities, key=probabilities.get) if style == "auto" else style
         beats = np.arange(0.0, end, 60.0 / FAKE_TEMPO)
         beats = beats[beats >= start_s] - start_s
+        motions = [synthetic_motion(seconds, 1000 * seed + k) for k in range(takes)]
+        if continue_from is not None:  # the kept frames, then the new dance (no care for the join: a stand-in)
+            j = round(at_s * FAKE_FPS)
+            kept = continue_from.resampled(FAKE_FPS)
+            motions = [Motion(np.concatenate([kept.rotations[:j], m.rotations[j:]]),
+                              np.concatenate([kept.root_positions[:j], m.root_positions[j:]]), FAKE_FPS)
+                       for m in motions]
         return GenerationResult(
-            motions=[synthetic_motion(seconds, 1000 * seed + k) for k in range(takes)],
+            motions=motions,
             beat_times=beats,
             downbeat_times=beats[::4],
             tempo_bpm=FAKE_TEMPO,

@@ -117,3 +117,52 @@ def test_root_motion_modes_carry_the_same_dance(song: Path, tmp_path: Path) -> N
     # Hips and every joint are where the travelling dance puts them (BVH keeps 6 decimals).
     np.testing.assert_allclose(read_dance_bvh(tmp_path / "bone" / "clicks.bvh").positions(), travel.positions(),
                                atol=1e-4)
+
+
+def join_continuity(motion: Motion, join: int) -> dict[str, float]:
+    """At the first new frame `join`: the largest joint step into it and the largest change of joint velocity
+    around it, beside the dance's own 95th percentiles of the same (per frame, the worst joint; metres/frame)."""
+    p = motion.positions()
+    v = np.diff(p, axis=0)
+    step = np.linalg.norm(v, axis=-1).max(axis=1)  # step[i]: frame i -> i + 1
+    dv = np.linalg.norm(np.diff(v, axis=0), axis=-1).max(axis=1)  # dv[i]: velocity change at frame i + 1
+    return {"step": float(step[join - 1]), "step_p95": float(np.percentile(step, 95)),
+            "dv": float(dv[join - 2 : join].max()), "dv_p95": float(np.percentile(dv, 95))}
+
+
+def test_continue_keeps_the_dance_and_joins_without_a_pop(song: Path, tmp_path: Path, capsys) -> None:
+    original = generate(song, tmp_path / "a", "--fps", "30")
+    kept_bvh = tmp_path / "a" / "clicks.bvh"
+    assert cli_main(["generate", str(song), "-o", str(tmp_path / "b"), "--seed", "9", "--continue", str(kept_bvh),
+                     "--at", "6"]) == 0
+    cont = Motion.load(tmp_path / "b" / "clicks.npz")
+    join = 180  # 6 s at the kept dance's 30 fps
+    assert cont.fps == 30 and cont.num_frames == original.num_frames
+    # Up to the join: the kept dance (as read back from its BVH); after it: a new dance.
+    np.testing.assert_allclose(cont.positions()[:join], original.positions()[:join], atol=1e-4)
+    assert np.abs(cont.positions()[join + 15 :] - original.positions()[join + 15 :]).max() > 0.05
+    got = join_continuity(cont, join)
+    assert got["step"] <= got["step_p95"] and got["dv"] <= got["dv_p95"], got
+
+    # The measure does see a pop: the kept dance cut onto another seed's dance at the same frame fails it.
+    other = generate(song, tmp_path / "c", "--fps", "30", "--seed", "11")
+    cut = Motion(np.concatenate([original.rotations[:join], other.rotations[join:]]),
+                 np.concatenate([original.root_positions[:join], other.root_positions[join:]]), 30.0, original.skeleton)
+    popped = join_continuity(cut, join)
+    assert popped["dv"] > popped["dv_p95"]
+    with capsys.disabled():
+        print(f"\ncontinue at 6 s: join {got}; plain cut {popped}")
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--at", "3"], "--at goes with --continue"),
+    (["--continue", "KEPT"], "--continue needs --at"),
+    (["--continue", "KEPT", "--at", "40"], "--at must be within the kept dance"),
+    (["--continue", "SONG", "--at", "2"], "clicks.wav:1: expected"),
+])
+def test_bad_continue_is_one_line(song: Path, tmp_path: Path, capsys, args, message) -> None:
+    generate(song, tmp_path / "kept")
+    args = [{"KEPT": str(tmp_path / "kept" / "clicks.bvh"), "SONG": str(song)}.get(a, a) for a in args]
+    assert cli_main(["generate", str(song), "-o", str(tmp_path / "o"), *args]) == 2
+    assert message in capsys.readouterr().err.strip().splitlines()[-1]
+    assert not (tmp_path / "o").exists()  # refused before any work

@@ -194,11 +194,15 @@ class CachedSampler:
         record_outputs: bool = False,
         progress: Progress | None = None,
         should_stop: Callable[[], bool] | None = None,
+        prefix: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Generate len(cond) frames [B, T, D] from frame 0 `first` [B, D]; cond [T, C] conditions frame t.
 
         With `teacher` [B, T, D], frames come from it instead of sampling (outputs are then comparable
-        with a teacher-forced forward pass). Returns the frames and, if asked, the raw outputs [B, T, O].
+        with a teacher-forced forward pass). With `prefix` [B, K, D] (K >= 1, its frame 0 is `first`), frames
+        before K are those and the rest is sampled after them: a dance continued from kept frames, which
+        fill every layer's queue as if the model had danced them. Returns the frames and, if asked, the raw
+        outputs [B, T, O].
         """
         cfg = self.cfg
         bsz, t_total, dim = len(first), len(cond), first.shape[1]
@@ -209,6 +213,8 @@ class CachedSampler:
         queues = np.zeros((cfg.layers, max(cfg.dilations), bsz, 2 * cfg.residual_channels), np.float32)
         layer_cond = self.layer_conditioning(cond)
         tf = np.ascontiguousarray(teacher.transpose(1, 0, 2), dtype=np.float32) if teacher is not None \
+            else np.zeros((0, bsz, dim), np.float32)
+        kept = np.ascontiguousarray(prefix.transpose(1, 0, 2), dtype=np.float32) if prefix is not None \
             else np.zeros((0, bsz, dim), np.float32)
         rng = sampling.rng if sampling is not None else np.random.default_rng(0)
         temperature = sampling.temperature if sampling is not None else 1.0
@@ -221,10 +227,13 @@ class CachedSampler:
             if teacher is None:
                 eps[t0:] = rng.standard_normal((t1 - t0, bsz, cont), dtype=np.float32)
                 unif[t0:] = rng.random((t1 - t0, bsz), dtype=np.float32)
-            _generate(frames, outputs, t0, t1, queues, self.dilations, *self.enc,
-                      self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
-                      *self.input_skip, cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
-                      np.float32(temperature), eps, unif, tf, cfg.residual_output)
+            split = min(max(t0, len(kept)), t1)  # frames before `split` are kept ones
+            for a, b, forced in ((t0, split, kept), (split, t1, tf)):
+                if a < b:
+                    _generate(frames, outputs, a, b, queues, self.dilations, *self.enc,
+                              self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
+                              *self.input_skip, cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
+                              np.float32(temperature), eps, unif, forced, cfg.residual_output)
             if progress is not None:
                 progress(t1 / t_total)
             if should_stop is not None and should_stop():
