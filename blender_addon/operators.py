@@ -136,6 +136,26 @@ class DANCENET_OT_continue(_Generate, bpy.types.Operator):
         return pipeline.prepare_continue(context.scene, export_target(context))
 
 
+class DANCENET_OT_choose_take(bpy.types.Operator):
+    """Play this take: its NLA track and action become active, the other takes' tracks are muted"""
+
+    bl_idname = "dancenet.choose_take"
+    bl_label = "Choose Take"
+    bl_options = {"REGISTER", "UNDO"}
+
+    action: StringProperty(name="Take", description="The take's action")
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        rig_obj = export_target(context)
+        action = bpy.data.actions.get(self.action)
+        if rig_obj is None or action is None or action not in [a for _t, a in pipeline.takes_of(rig_obj)]:
+            self.report({"ERROR"}, f"'{self.action}' is not a take on the DanceNet target rig")
+            return {"CANCELLED"}
+        pipeline.choose_take(rig_obj, action)
+        self.report({"INFO"}, f"Playing take '{action.name}'")
+        return {"FINISHED"}
+
+
 class DANCENET_OT_cancel(bpy.types.Operator):
     """Stop the running generation; the scene stays as it was"""
 
@@ -306,6 +326,7 @@ class DANCENET_OT_install_dependencies(bpy.types.Operator):
 CLASSES = (
     DANCENET_OT_generate,
     DANCENET_OT_continue,
+    DANCENET_OT_choose_take,
     DANCENET_OT_cancel,
     DANCENET_OT_export_bvh,
     DANCENET_OT_export_fbx,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import deps, operators
+from . import deps, operators, pipeline
 
 
 def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
@@ -85,6 +85,16 @@ class _DanceNetPanel:
             layout.operator("dancenet.continue_dance", icon="FF")
 
         rig_obj = operators.export_target(context)
+        takes = pipeline.takes_of(rig_obj) if rig_obj is not None else []
+        if takes:
+            box = layout.box().column(align=True)
+            box.label(text="Takes (NLA)", icon="NLA")
+            active = rig_obj.animation_data.action
+            for _track, action in reversed(takes):  # newest first, as in the NLA editor
+                chosen = action == active
+                op = box.operator("dancenet.choose_take", text=action.name, depress=chosen,
+                                  icon="RADIOBUT_ON" if chosen else "RADIOBUT_OFF")
+                op.action = action.name
         if rig_obj is not None and rig_obj.animation_data and rig_obj.animation_data.action:
             row = layout.row(align=True)
             row.operator("dancenet.export_fbx", icon="EXPORT")

@@ -326,6 +326,40 @@ def take_motion(action: bpy.types.Action) -> Any:
     return Motion(rotations, np.asarray(d["root"], np.float64).reshape(-1, 3), d["fps"], skeleton)
 
 
+def takes_of(rig_obj: bpy.types.Object) -> list[tuple[bpy.types.NlaTrack, bpy.types.Action]]:
+    """The rig's NLA tracks that hold a DanceNet take, bottom to top, with their action (a user's tracks
+    are never among them)."""
+    anim = rig_obj.animation_data
+    if anim is None:
+        return []
+    found = []
+    for track in anim.nla_tracks:
+        actions = [strip.action for strip in track.strips]
+        if len(actions) == 1 and actions[0] is not None and actions[0].get(ACTION_PROP):
+            found.append((track, actions[0]))
+    return found
+
+
+def _add_take_track(rig_obj: bpy.types.Object, action: bpy.types.Action) -> None:
+    """A new NLA track (on top) holding the take, so every take stays a click away."""
+    track = rig_obj.animation_data.nla_tracks.new()
+    track.name = action.name[:63]
+    strip = track.strips.new(action.name[:63], round(action.frame_range[0]), action)
+    if hasattr(strip, "action_slot"):  # layered actions (Blender 4.4+): the slot made for this rig
+        strip.action_slot = action.slots[0]
+
+
+def choose_take(rig_obj: bpy.types.Object, action: bpy.types.Action) -> None:
+    """Make `action` the rig's active take: its track plays and is the active action; the other takes'
+    tracks are muted. A user's own tracks keep their state."""
+    for track, take in takes_of(rig_obj):
+        track.mute = take != action
+    anim = rig_obj.animation_data
+    anim.action = action
+    if hasattr(action, "slots"):
+        anim.action_slot = action.slots[0]
+
+
 def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -> Plan:
     """A Plan that keeps the rig's active take up to the current frame and dances the rest with a new seed."""
     action = rig_obj.animation_data.action if rig_obj is not None and rig_obj.animation_data else None
@@ -493,10 +527,9 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
         })  # fmt: skip
         actions.append(action)
         frames = max(frames, round(motion.duration * fps))
-    anim = target.animation_data
-    anim.action = actions[0]
-    if hasattr(actions[0], "slots"):
-        anim.action_slot = actions[0].slots[0]
+    for action in actions:
+        _add_take_track(target, action)
+    choose_take(target, actions[0])
 
     scene.frame_start, scene.frame_end = frame_start, frame_start + frames - 1
     scene.frame_set(frame_start)

@@ -281,5 +281,80 @@ def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_pa
     join = {"step": step[95], "step_p95": np.percentile(step, 95), "dv": dv[94:96].max(),
             "dv_p95": np.percentile(dv, 95)}
     assert join["step"] <= join["step_p95"] and join["dv"] <= join["dv_p95"], join
+    # Both takes are NLA tracks; choosing the first plays it again.
+    assert [t.mute for t, _a in pipeline.takes_of(rig)] == [True, False]
+    assert bpy.ops.dancenet.choose_take(action=first_take.name) == {"FINISHED"}
+    assert np.abs(evaluated_heads(sc, rig, [150]) - before[149]).max() < 1e-4
     with capsys.disabled():
         print(f"\nBlender join at frame 97 (m/frame at 24 fps): {({k: round(float(x), 4) for k, x in join.items()})}")
+
+
+# --- takes on the NLA -------------------------------------------------------------------------------------
+
+
+def test_takes_are_nla_tracks_one_playing_switchable(scene, addon, song):  # noqa: F811
+    from test_addon import fk_world, world_heads
+    from test_addon_doubles import synthetic_motion
+
+    from dancenet_core.skeleton import JOINT_NAMES
+
+    scene.render.fps = 30
+    props = scene.dancenet
+    props.music_source, props.music_file, props.takes, props.seed = "FILE", str(song), 3, 2
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    takes = addon.pipeline.takes_of(rig)
+    assert [a.name for _t, a in takes] == [f"Test Song · hiphop · seed 2 · take {k}" for k in (1, 2, 3)]
+    assert [t.mute for t, _a in takes] == [False, True, True] and rig.animation_data.action == takes[0][1]
+
+    def dancing(k: int) -> bool:
+        scene.frame_set(25)
+        return np.abs(world_heads(rig, JOINT_NAMES) - fk_world(synthetic_motion(2.0, 2000 + k))[24]).max() < 1e-3
+
+    assert dancing(0) and not dancing(2)
+    assert bpy.ops.dancenet.choose_take(action=takes[2][1].name) == {"FINISHED"}
+    assert [t.mute for t, _a in takes] == [True, True, False] and rig.animation_data.action == takes[2][1]
+    assert dancing(2) and not dancing(0)
+    # Muting in the NLA alone plays the take too (the active action cleared, as animators do in the NLA editor).
+    rig.animation_data.action = None
+    assert dancing(2)
+    with pytest.raises(RuntimeError, match="is not a take on the DanceNet target rig"):
+        bpy.ops.dancenet.choose_take(action="no such take")
+
+
+def test_users_actions_and_nla_tracks_are_never_changed(scene, addon, song):  # noqa: F811
+    rig = addon.rig.create_rig(bpy.context, "Hero", with_mesh=False)
+    anim = rig.animation_data_create()
+    own = bpy.data.actions.new("hero idle")
+    rig.pose.bones["head"].rotation_quaternion = (0.9, 0.1, 0.0, 0.0)
+    anim.action = own
+    rig.keyframe_insert('pose.bones["head"].rotation_quaternion', frame=1)
+    layer = bpy.data.actions.new("hero wave")
+    track = anim.nla_tracks.new()
+    track.name, track.mute = "hero layer", False
+    strip = track.strips.new("wave", 5, layer)
+    strip.influence, strip.blend_type = 0.5, "ADD"
+
+    def users_state():
+        return {
+            "actions": {a.name: [tuple(k.co) for c in (a.layers[0].strips[0].channelbags[0].fcurves
+                                                    if a.layers else []) for k in c.keyframe_points]
+                        for a in (own, layer)},
+            "track": (track.name, track.mute, track.is_solo, [(s.name, s.action.name, s.frame_start, s.influence,
+                                                               s.blend_type) for s in track.strips]),
+        }
+
+    before = users_state()
+    assert before["actions"]["hero idle"]  # the user's keys are there to be compared
+    scene.render.fps = 30
+    props = scene.dancenet
+    props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    props.takes = 2
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    scene.frame_set(20)
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
+    ours = addon.pipeline.takes_of(rig)
+    assert len(ours) == 3 and track not in [t for t, _a in ours]
+    assert bpy.ops.dancenet.choose_take(action=ours[1][1].name) == {"FINISHED"}
+    assert users_state() == before and own.use_fake_user  # kept for the user, unchanged
+    assert len(anim.nla_tracks) == 4
