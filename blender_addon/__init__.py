@@ -11,7 +11,7 @@ deps.activate()  # before the modules below import dancenet_core
 
 import bpy  # noqa: E402
 
-from . import operators, panels, preferences, properties  # noqa: E402
+from . import menus, operators, panels, preferences, properties  # noqa: E402
 
 bl_info = {  # read by Blender only when installed as a legacy add-on
     "name": "DanceNet",
@@ -23,16 +23,18 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
     "category": "Animation",
 }
 
-_CLASSES = (*properties.CLASSES, *preferences.CLASSES, *operators.CLASSES, *panels.CLASSES)
+_CLASSES = (*properties.CLASSES, *preferences.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
 
 
 def register() -> None:
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
+    menus.register()
 
 
 def unregister() -> None:
+    menus.unregister()
     properties.unregister()
     for cls in reversed(_CLASSES):
         bpy.utils.unregister_class(cls)

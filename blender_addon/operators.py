@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from dancenet_core.errors import DanceNetError
@@ -259,14 +259,18 @@ class DANCENET_OT_edit_bone_map(bpy.types.Operator):
 
 
 class DANCENET_OT_add_rig(bpy.types.Operator):
-    """Add a DanceNet rig (55 bones, SMPL-X names) with a mannequin mesh"""
+    """Add a DanceNet rig (55 bones, SMPL-X names) with a mannequin mesh, at the 3D cursor"""
 
     bl_idname = "dancenet.add_rig"
-    bl_label = "Add DanceNet Rig"
+    bl_label = "DanceNet Rig"
     bl_options = {"REGISTER", "UNDO"}
 
+    with_mesh: BoolProperty(name="Mannequin", default=True, description="Give the rig a simple body mesh")
+    root_bone: BoolProperty(name="Root Bone", default=False,
+                            description="A root bone on the floor above the hips, for Root Bone motion")
+
     def execute(self, context: bpy.types.Context) -> set[str]:
-        rig_obj = rig.create_rig(context, pipeline.RIG_NAME, with_mesh=context.scene.dancenet.with_mesh)
+        rig_obj = rig.create_rig(context, pipeline.RIG_NAME, with_mesh=self.with_mesh, root_bone=self.root_bone)
         rig_obj.location = context.scene.cursor.location
         context.view_layer.objects.active = rig_obj
         return {"FINISHED"}

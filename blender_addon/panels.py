@@ -5,6 +5,7 @@ from __future__ import annotations
 import bpy
 
 from . import deps, operators, pipeline
+from .menus import DANCENET_MT_presets
 
 
 def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
@@ -31,6 +32,11 @@ class _DanceNetPanel:
             box.operator("dancenet.install_dependencies", icon="IMPORT")
             if runtime.installing:
                 box.label(text="Installing… (Blender stays usable)", icon="SORTTIME")
+
+        row = layout.row(align=True)
+        row.menu("DANCENET_MT_presets", text=DANCENET_MT_presets.bl_label, icon="PRESET")
+        row.operator("dancenet.preset_add", text="", icon="ADD")
+        row.operator("dancenet.preset_add", text="", icon="REMOVE").remove_active = True
 
         col = layout.column()
         col.row().prop(props, "music_source", expand=True)

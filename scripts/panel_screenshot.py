@@ -87,7 +87,10 @@ class RecordingLayout:
         label = op.get_rna_type().name if text is None else text
         enabled = self.enabled and self.active and op.poll()
         self.children.append(Widget("operator", label, icon, enabled=enabled, icon_only=not label))
-        return SimpleNamespace()  # operator properties: the panel sets none
+        return SimpleNamespace()  # operator properties the panel sets (kept, not drawn)
+
+    def menu(self, menu: str, text: str = "", icon: str = "NONE") -> None:
+        self.children.append(Widget("menu", "", icon, value=text, enabled=self.enabled and self.active))
 
     def prop(
         self, data: bpy.types.bpy_struct, property: str, text: str | None = None, icon: str = "NONE",  # noqa: A002

@@ -358,3 +358,56 @@ def test_users_actions_and_nla_tracks_are_never_changed(scene, addon, song):  # 
     assert bpy.ops.dancenet.choose_take(action=ours[1][1].name) == {"FINISHED"}
     assert users_state() == before and own.use_fake_user  # kept for the user, unchanged
     assert len(anim.nla_tracks) == 4
+
+
+# --- where Blender users look ----------------------------------------------------------------------------
+
+
+class _Layout:
+    """Records the operators a menu function puts in a menu."""
+
+    def __init__(self) -> None:
+        self.ops: list[tuple[str, str | None]] = []
+
+    def operator(self, idname: str, text: str | None = None, **_kw) -> None:
+        self.ops.append((idname, text))
+
+
+def test_add_armature_and_file_export_menus(scene, addon, song, tmp_path):  # noqa: F811
+    from types import SimpleNamespace
+
+    drawn = {}
+    for menu in (bpy.types.VIEW3D_MT_armature_add, bpy.types.TOPBAR_MT_file_export):
+        layout = _Layout()
+        for draw in menu._dyn_ui_initialize():  # the functions Menu.append added, Blender's own included
+            if draw.__module__.endswith("menus"):
+                draw(SimpleNamespace(layout=layout), bpy.context)
+        drawn[menu.__name__] = layout.ops
+    assert drawn["VIEW3D_MT_armature_add"] == [("dancenet.add_rig", None)]
+    assert [op for op, _t in drawn["TOPBAR_MT_file_export"]] == ["dancenet.export_bvh", "dancenet.export_fbx"]
+
+    # What the Add menu entry runs: a rig at the 3D cursor, here with a root bone and no mannequin.
+    scene.cursor.location = (1.0, 2.0, 0.0)
+    assert bpy.ops.dancenet.add_rig(with_mesh=False, root_bone=True) == {"FINISHED"}
+    rig = bpy.context.view_layer.objects.active
+    assert tuple(rig.location) == (1.0, 2.0, 0.0) and not rig.children
+    assert rig.data.bones["pelvis"].parent.name == "root"
+    props = scene.dancenet
+    props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    props.root_motion = "root-bone"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    # What the Export menu entries run: the dance of the active rig, root bone included.
+    assert bpy.ops.dancenet.export_bvh(filepath=str(tmp_path / "menu.bvh")) == {"FINISHED"}
+    assert "ROOT root" in (tmp_path / "menu.bvh").read_text()[:100]
+
+
+def test_presets_save_and_restore_the_settings(scene, addon):  # noqa: F811
+    props = scene.dancenet
+    props.style, props.seed, props.temperature, props.takes, props.root_motion = "jazz", 7, 0.4, 3, "in-place"
+    assert bpy.ops.dancenet.preset_add(name="Jazz on the spot") == {"FINISHED"}
+    preset = Path(bpy.utils.user_resource("SCRIPTS", path="presets/dancenet/settings")) / "Jazz_on_the_spot.py"
+    assert preset.is_file()
+    props.style, props.seed, props.temperature, props.takes, props.root_motion = "auto", 0, 0.1, 1, "travel"
+    assert bpy.ops.script.execute_preset(filepath=str(preset), menu_idname="DANCENET_MT_presets") == {"FINISHED"}
+    assert (props.style, props.seed, props.takes, props.root_motion) == ("jazz", 7, 3, "in-place")
+    assert props.temperature == pytest.approx(0.4)
