@@ -8,6 +8,7 @@ of a map, and optional joints whose bone the armature lacks, are simply not driv
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,13 +19,32 @@ from dancenet_core.skeleton import JOINT_NAMES
 from .rigdef import REQUIRED_JOINTS
 
 MAP_DIR = Path(__file__).parent / "bonemaps"
-SHIPPED: dict[str, str] = {"SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json"}
+SHIPPED: dict[str, str] = {
+    "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
+    "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "GENERIC": "generic.json",
+}  # fmt: skip
 
 
 @dataclass
 class BoneMap:
     name: str
-    bones: dict[str, str]  # joint name -> bone name
+    bones: dict[str, str | list[str]]  # joint name -> bone name, or names to try in turn
+
+
+def name_key(name: str) -> tuple[str, str]:
+    """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
+    case and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh")."""
+    local = name.rsplit(":", 1)[-1]
+    side, rest = "", local
+    if m := re.match(r"(?i)^(left|right)(.+)$", local):
+        side, rest = m[1], m[2]
+    elif m := re.match(r"(?i)^(.+?)(left|right)$", local):
+        side, rest = m[2], m[1]
+    elif m := re.search(r"(?i)(?:^|[._\- ])([lr])(?:[._\- ]|$)", local):
+        side, rest = m[1], local[: m.start()] + " " + local[m.end() :]
+    elif m := re.match(r"^([lr])([A-Z].*)$", local):
+        side, rest = m[1], m[2]
+    return side[:1].lower(), re.sub(r"[^a-z0-9]", "", rest.lower())
 
 
 def parse(text: str, source: str) -> BoneMap:
@@ -34,8 +54,11 @@ def parse(text: str, source: str) -> BoneMap:
     except json.JSONDecodeError as e:
         raise DanceNetError(f"Bone map {source} is not valid JSON (line {e.lineno}: {e.msg})") from e
     bones = data.get("bones") if isinstance(data, dict) else None
-    if not isinstance(bones, dict) or not all(isinstance(v, str) for v in bones.values()):
-        raise DanceNetError(f'Bone map {source} needs a "bones" object of joint name -> bone name')
+    if not isinstance(bones, dict) or not all(
+        isinstance(v, str) or (isinstance(v, list) and v and all(isinstance(x, str) for x in v)) for v in bones.values()
+    ):
+        raise DanceNetError(f'Bone map {source} needs a "bones" object of joint name -> bone name (or a list of '
+                            "names to try in turn)")
     unknown = sorted(set(bones) - set(JOINT_NAMES))
     if unknown:
         raise DanceNetError(
@@ -60,12 +83,41 @@ def load_file(path: str | Path) -> BoneMap:
     return parse(text, path.name)
 
 
-def _find(wanted: str, bones: set[str], by_local: dict[str, list[str]]) -> str | None:
-    """The bone named `wanted`, or the one bone with the same name after any 'namespace:' prefix."""
-    if wanted in bones:
-        return wanted
-    matches = by_local.get(wanted.rsplit(":", 1)[-1], [])
-    return matches[0] if len(matches) == 1 else None
+def _find(wanted: str | list[str], bones: set[str], by_local: dict[str, list[str]],
+          by_key: dict[tuple[str, str], list[str]]) -> str | None:
+    """The first of the `wanted` names the armature has: as written, else the one bone with that name after
+    any 'namespace:' prefix, else the one bone with the same `name_key` (side and part)."""
+    for name in [wanted] if isinstance(wanted, str) else wanted:
+        if name in bones:
+            return name
+        for found in (by_local.get(name.rsplit(":", 1)[-1], []), by_key.get(name_key(name), [])):
+            if len(found) == 1:
+                return found[0]
+    return None
+
+
+def _shown(wanted: str | list[str]) -> str:
+    return repr(wanted) if isinstance(wanted, str) else " or ".join(repr(w) for w in wanted)
+
+
+def match(bone_map: BoneMap, bone_names: Iterable[str]) -> tuple[dict[str, str], list[str]]:
+    """(joint -> existing bone, joints the map names but the armature lacks); never raises (the panel
+    draws it as the user edits)."""
+    bones = set(bone_names)
+    by_local: dict[str, list[str]] = {}
+    by_key: dict[tuple[str, str], list[str]] = {}
+    for b in bones:
+        by_local.setdefault(b.rsplit(":", 1)[-1], []).append(b)
+        by_key.setdefault(name_key(b), []).append(b)
+    found: dict[str, str] = {}
+    unmatched: list[str] = []
+    for joint, wanted in bone_map.bones.items():
+        bone = _find(wanted, bones, by_local, by_key)
+        if bone is not None and bone not in found.values():  # one bone plays one joint
+            found[joint] = bone
+        else:
+            unmatched.append(joint)
+    return found, unmatched
 
 
 def resolve(bone_map: BoneMap, bone_names: Iterable[str], armature: str) -> tuple[dict[str, str], list[str]]:
@@ -73,20 +125,10 @@ def resolve(bone_map: BoneMap, bone_names: Iterable[str], armature: str) -> tupl
 
     Raises DanceNetError naming every required joint the map leaves out or the armature lacks.
     """
-    bones = set(bone_names)
-    by_local: dict[str, list[str]] = {}
-    for b in bones:
-        by_local.setdefault(b.rsplit(":", 1)[-1], []).append(b)
-    found: dict[str, str] = {}
-    skipped: list[str] = []
-    for joint, wanted in bone_map.bones.items():
-        bone = _find(wanted, bones, by_local)
-        if bone is not None:
-            found[joint] = bone
-        elif joint not in REQUIRED_JOINTS:
-            skipped.append(f"{joint} ({wanted})")
+    found, unmatched = match(bone_map, bone_names)
+    skipped = [f"{j} ({_shown(bone_map.bones[j]).replace(chr(39), '')})" for j in unmatched if j not in REQUIRED_JOINTS]
     missing = [
-        f"{j} ({bone_map.bones[j]!r} not in the armature)" if j in bone_map.bones else f"{j} (not in the map)"
+        f"{j} ({_shown(bone_map.bones[j])} not in the armature)" if j in bone_map.bones else f"{j} (not in the map)"
         for j in REQUIRED_JOINTS
         if j not in found
     ]
@@ -98,12 +140,33 @@ def resolve(bone_map: BoneMap, bone_names: Iterable[str], armature: str) -> tupl
     return found, skipped
 
 
-def detect(bone_names: Iterable[str], armature: str) -> BoneMap:
-    """The shipped map that resolves every required joint and the most bones in all, for Auto."""
+def user_maps(folder: Path | None) -> list[BoneMap]:
+    """The maps a user saved (Save Bone Map) in `folder`, by name; unreadable files are left out."""
+    if folder is None or not folder.is_dir():
+        return []
+    maps = []
+    for path in sorted(folder.glob("*.json")):
+        try:
+            maps.append(load_file(path))
+        except DanceNetError:
+            continue
+    return maps
+
+
+def closest(bone_names: Iterable[str], saved: Path | None = None) -> BoneMap:
+    """The map that finds the most joints on an armature even if it misses required ones: the start for
+    fixing a rig no map fits."""
+    names = list(bone_names)
+    candidates = [*user_maps(saved), *(load_shipped(key) for key in SHIPPED)]
+    return max(candidates, key=lambda m: len(match(m, names)[0]))
+
+
+def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) -> BoneMap:
+    """For Auto: the map that resolves every required joint and the most bones in all, among the user's
+    saved maps in `saved` (first, so they win a tie) and the shipped ones."""
     names = list(bone_names)
     best: tuple[int, BoneMap] | None = None
-    for key in SHIPPED:
-        candidate = load_shipped(key)
+    for candidate in [*user_maps(saved), *(load_shipped(key) for key in SHIPPED)]:
         try:
             found, _ = resolve(candidate, names, armature)
         except DanceNetError:
@@ -112,7 +175,7 @@ def detect(bone_names: Iterable[str], armature: str) -> BoneMap:
             best = (len(found), candidate)
     if best is None:
         raise DanceNetError(
-            f"No shipped bone map (SMPL-X, Mixamo, Rigify) fits armature '{armature}'. "
+            f"No shipped bone map ({', '.join(load_shipped(k).name for k in SHIPPED)}) fits armature '{armature}'. "
             "Choose one and edit it (Edit Bone Map), or load your own JSON map"
         )
     return best[1]

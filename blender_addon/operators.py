@@ -237,24 +237,85 @@ class DANCENET_OT_edit_bone_map(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         props = context.scene.dancenet
+        if props.bone_map == "TEXT" and props.bone_map_text is not None:
+            return {"FINISHED"}
         try:
-            if props.bone_map == "TEXT" and props.bone_map_text is not None:
-                return {"FINISHED"}
-            if props.bone_map in bonemap.SHIPPED:
-                chosen = bonemap.load_shipped(props.bone_map)
-            elif props.bone_map == "FILE":
-                chosen = bonemap.load_file(bpy.path.abspath(props.bone_map_file))
-            elif props.armature is not None:
-                chosen = bonemap.detect([b.name for b in props.armature.data.bones], props.armature.name)
-            else:
-                chosen = bonemap.load_shipped("SMPLX")
+            text = _map_to_text(props)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        text = bpy.data.texts.new(f"{chosen.name} bone map.json")
-        text.write(json.dumps({"name": f"{chosen.name} (edited)", "bones": chosen.bones}, indent=2) + "\n")
-        props.bone_map_text, props.bone_map = text, "TEXT"
         self.report({"INFO"}, f"Bone map copied to text '{text.name}': edit it in the Text Editor")
+        return {"FINISHED"}
+
+
+def _map_to_text(props: Any) -> bpy.types.Text:
+    """The chosen map as it resolves on the target (each joint -> the bone it found, then the joints it did
+    not find as written) in a new text block, which becomes the panel's map."""
+    chosen = pipeline.current_map(props)
+    bones = dict(chosen.bones)
+    if props.armature is not None:
+        found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
+        bones = found | {j: b for j, b in chosen.bones.items() if j not in found}
+    text = bpy.data.texts.new(f"{chosen.name} bone map.json")
+    text.write(json.dumps({"name": f"{chosen.name} (edited)", "bones": bones}, indent=2) + "\n")
+    props.bone_map_text, props.bone_map = text, "TEXT"
+    return text
+
+
+class DANCENET_OT_fix_bone(bpy.types.Operator):
+    """Let the chosen bone play the chosen joint (the map becomes an editable text block first)"""
+
+    bl_idname = "dancenet.fix_bone"
+    bl_label = "Set Bone"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        props = context.scene.dancenet
+        rig_obj = props.armature
+        if rig_obj is None or props.fix_bone not in rig_obj.data.bones:
+            self.report({"ERROR"}, f"Pick a bone of the target armature for {props.fix_joint}")
+            return {"CANCELLED"}
+        try:
+            text = props.bone_map_text if props.bone_map == "TEXT" and props.bone_map_text else _map_to_text(props)
+            edited = bonemap.parse(text.as_string(), f"text '{text.name}'")
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        edited.bones[props.fix_joint] = props.fix_bone
+        text.from_string(json.dumps({"name": edited.name, "bones": edited.bones}, indent=2) + "\n")
+        self.report({"INFO"}, f"{props.fix_joint} is now played by '{props.fix_bone}' (map in text '{text.name}')")
+        return {"FINISHED"}
+
+
+class DANCENET_OT_save_bone_map(bpy.types.Operator):
+    """Save the bone map as it fits this armature; Auto then uses it in every file for rigs it fits"""
+
+    bl_idname = "dancenet.save_bone_map"
+    bl_label = "Save Bone Map"
+
+    name: StringProperty(name="Name", default="My rig", description="The map's name (and file name)")
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from dancenet_core.atomic import write_text
+        from dancenet_core.outputs import safe_stem
+
+        props = context.scene.dancenet
+        try:
+            chosen = pipeline.current_map(props)
+            if props.armature is None:
+                raise DanceNetError("Pick the target armature whose bone map to save")
+            found, _ = pipeline.resolve_map(props.armature, chosen)
+            folder = pipeline.saved_maps_dir()
+            folder.mkdir(parents=True, exist_ok=True)
+            path = folder / f"{safe_stem(self.name, 'bone map')}.json"
+            write_text(path, json.dumps({"name": self.name, "bones": found}, indent=2) + "\n")
+        except (DanceNetError, OSError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Bone map '{self.name}' saved to {path}")
         return {"FINISHED"}
 
 
@@ -335,6 +396,8 @@ CLASSES = (
     DANCENET_OT_export_bvh,
     DANCENET_OT_export_fbx,
     DANCENET_OT_edit_bone_map,
+    DANCENET_OT_fix_bone,
+    DANCENET_OT_save_bone_map,
     DANCENET_OT_add_rig,
     DANCENET_OT_install_dependencies,
 )

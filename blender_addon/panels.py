@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import bpy
 
-from . import deps, operators, pipeline
+from dancenet_core.errors import DanceNetError
+from dancenet_core.skeleton import JOINT_NAMES
+
+from . import bonemap, deps, operators, pipeline
 from .menus import DANCENET_MT_presets
+from .rigdef import REQUIRED_JOINTS
 
 
 def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
@@ -14,6 +18,29 @@ def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
     box.label(text=f"Tempo {analysis['tempo_bpm']:.0f} BPM", icon="SOUND")
     for style, p in sorted(analysis["probabilities"].items(), key=lambda kv: -kv[1]):
         box.progress(factor=p, text=f"{style.replace('_', ' ').title()} {p:.0%}")
+
+
+def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) -> None:
+    """What the bone map found on the target armature: each required joint's bone or a warning, how many
+    optional joints it drives, and the controls to give a joint another bone and to save the map."""
+    box = layout.box().column(align=True)
+    try:
+        chosen = pipeline.current_map(props)
+    except DanceNetError as e:
+        box.label(text=str(e), icon="ERROR")
+        return
+    found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
+    box.label(text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched", icon="BONE_DATA")
+    for joint in REQUIRED_JOINTS:
+        if joint in found:
+            box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}", icon="CHECKMARK")
+        else:
+            box.label(text=f"{joint.replace('_', ' ')}: no bone", icon="ERROR")
+    row = box.row(align=True)
+    row.prop(props, "fix_joint", text="")
+    row.prop_search(props, "fix_bone", props.armature.data, "bones", text="")
+    row.operator("dancenet.fix_bone", text="", icon="CHECKMARK")
+    box.operator("dancenet.save_bone_map", icon="FILE_TICK")
 
 
 class _DanceNetPanel:
@@ -78,6 +105,8 @@ class _DanceNetPanel:
             elif props.bone_map == "TEXT":
                 col.prop(props, "bone_map_text", text="")
             col.operator("dancenet.edit_bone_map", icon="TEXT")
+            if props.armature is not None and props.armature.type == "ARMATURE":
+                _draw_matches(col, props)
 
         if runtime.running:
             row = layout.row(align=True)

@@ -167,8 +167,29 @@ def resolve_map(
 ) -> tuple[dict[str, str], list[str]]:
     """(joint -> bone, skipped optional joints) for an armature; DanceNetError if the map does not fit."""
     names = [b.name for b in rig_obj.data.bones]
-    chosen = bone_map or bonemap.detect(names, rig_obj.name)
+    chosen = bone_map or bonemap.detect(names, rig_obj.name, saved_maps_dir())
     return bonemap.resolve(chosen, names, rig_obj.name)
+
+
+def saved_maps_dir() -> Path:
+    """Where Save Bone Map puts a user's maps: Blender's user presets, shared by every file."""
+    return Path(bpy.utils.user_resource("SCRIPTS", path="presets/dancenet/bonemaps"))
+
+
+def current_map(props: Any) -> bonemap.BoneMap:
+    """The bone map the panel's settings choose for the target armature (Auto: the detected one, or the
+    closest when none fits, to start fixing from)."""
+    chosen = _chosen_map(props)
+    if chosen is not None:
+        return chosen
+    rig_obj = props.armature
+    if rig_obj is None or rig_obj.type != "ARMATURE":
+        return bonemap.load_shipped("SMPLX")
+    names = [b.name for b in rig_obj.data.bones]
+    try:
+        return bonemap.detect(names, rig_obj.name, saved_maps_dir())
+    except DanceNetError:
+        return bonemap.closest(names, saved_maps_dir())
 
 
 def prepare(scene: bpy.types.Scene) -> Plan:

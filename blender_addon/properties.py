@@ -9,6 +9,8 @@ from typing import Any
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from dancenet_core.skeleton import JOINT_NAMES
+
 from . import pipeline
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
@@ -95,12 +97,22 @@ class DanceNetSettings(bpy.types.PropertyGroup):
             ("SMPLX", "SMPL-X", "Bones named like the SMPL-X joints (DanceNet's own rig)"),
             ("MIXAMO", "Mixamo", "mixamorig:Hips, mixamorig:Spine, ..."),
             ("RIGIFY", "Rigify", "A generated Rigify rig, through its DEF- deform bones"),
+            ("UNREAL", "Unreal Manny/Quinn", "pelvis, spine_01, thigh_l, ... (UE5 and the UE4 mannequin)"),
+            ("VRM", "VRM / VRoid", "J_Bip_C_Hips, ... or the VRM humanoid names (hips, leftUpperLeg, ...)"),
+            ("CC", "Character Creator", "CC_Base_Hip, CC_Base_L_Thigh, ... (Reallusion CC3/CC4)"),
+            ("DAZ", "DAZ Genesis", "hip, lThighBend, lShldrBend, ... (Genesis 3/8)"),
+            ("MPFB", "MakeHuman/MPFB", "root, spine05, upperleg01.L, ... (the default skeleton)"),
+            ("GENERIC", "Generic Names", "thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh, ...: side marks, case and "
+             "separators ignored"),
             ("FILE", "JSON File", "Your own map in a JSON file"),
             ("TEXT", "Text Block", "Your own map in a text block (see Edit Bone Map)"),
         ],
         default="AUTO",
     )
     bone_map_file: StringProperty(name="Map File", subtype="FILE_PATH")
+    fix_joint: EnumProperty(name="Joint", items=[(j, j.replace("_", " "), "") for j in JOINT_NAMES],
+                            description="The dance's joint to give another bone")
+    fix_bone: StringProperty(name="Bone", description="The armature's bone that plays the joint")
     bone_map_text: PointerProperty(name="Map Text", type=bpy.types.Text)
     add_markers: BoolProperty(
         name="Beat Markers", default=True, description="Mark bars and beats on the timeline"

@@ -89,6 +89,11 @@ class RecordingLayout:
         self.children.append(Widget("operator", label, icon, enabled=enabled, icon_only=not label))
         return SimpleNamespace()  # operator properties the panel sets (kept, not drawn)
 
+    def prop_search(self, data: bpy.types.bpy_struct, property: str, search_data: bpy.types.bpy_struct,  # noqa: A002
+                    search_property: str, text: str = "", icon: str = "NONE") -> None:
+        self.children.append(Widget("pointer", text, "BONE_DATA", value=str(getattr(data, property)),
+                                    enabled=self.enabled and self.active))
+
     def menu(self, menu: str, text: str = "", icon: str = "NONE") -> None:
         self.children.append(Widget("menu", "", icon, value=text, enabled=self.enabled and self.active))
 

@@ -411,3 +411,122 @@ def test_presets_save_and_restore_the_settings(scene, addon):  # noqa: F811
     assert bpy.ops.script.execute_preset(filepath=str(preset), menu_idname="DANCENET_MT_presets") == {"FINISHED"}
     assert (props.style, props.seed, props.takes, props.root_motion) == ("jazz", 7, 3, "in-place")
     assert props.temperature == pytest.approx(0.4)
+
+
+# --- any humanoid rig ---------------------------------------------------------------------------------------
+
+_GENERIC = {"pelvis": "hips", "spine1": "spine", "spine2": "chest", "spine3": "upper_chest", "neck": "neck",
+            "head": "head"} | {f"{side}_{j}": f"{part}_{s}" for side, s in (("left", "L"), ("right", "R"))
+                               for j, part in (("collar", "shoulder"), ("shoulder", "upper_arm"), ("elbow", "forearm"),
+                                               ("wrist", "hand"), ("hip", "thigh"), ("knee", "shin"), ("ankle", "foot"),
+                                               ("foot", "toe"))}  # fmt: skip
+_PARTS = (("collar", "Shoulder"), ("shoulder", "UpperArm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
+          ("hip", "Thigh"), ("knee", "Shin"), ("ankle", "Foot"), ("foot", "Toe"))
+_LEFT_RIGHT = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Chest", "spine3": "UpperChest", "neck": "Neck",
+               "head": "Head"} | {f"{side}_{j}": f"{side.title()}{part}" for side in ("left", "right")
+                                  for j, part in _PARTS}  # fmt: skip
+# (map key, how the tool lays the rig out): A-pose where the tool's rest pose is one.
+CONVENTIONS = {
+    "MIXAMO": {"a_pose_deg": 35.0},
+    "RIGIFY": {"root": "root", "splits": {"left_shoulder": "DEF-upper_arm.L.001", "left_knee": "DEF-shin.L.001"}},
+    "UNREAL": {"a_pose_deg": 40.0, "root": "root", "splits": {"spine1": "spine_02", "spine2": "spine_04",
+                                                              "left_shoulder": "upperarm_twist_01_l"}},
+    "VRM": {"a_pose_deg": 30.0},
+    "CC": {"a_pose_deg": 45.0, "root": "CC_Base_BoneRoot", "splits": {"neck": "CC_Base_NeckTwist02",
+                                                                       "right_elbow": "CC_Base_R_ForearmTwist01"}},
+    "DAZ": {"a_pose_deg": 45.0, "splits": {"left_shoulder": "lShldrTwist", "right_shoulder": "rShldrTwist",
+                                            "left_elbow": "lForearmTwist", "left_hip": "lThighTwist"}},
+    "MPFB": {"splits": {"spine1": "spine04", "spine2": "spine02", "left_shoulder": "upperarm02.L"}},
+    "GENERIC": {"names": _GENERIC, "a_pose_deg": 20.0},
+    "GENERIC Left/Right": {"names": _LEFT_RIGHT},
+}
+
+
+LANDING: dict[str, float] = {}  # convention -> worst landing error (share of height), for the report
+
+
+def landing_error(rig, mapping: dict[str, str], motion, first_frame: int) -> float:
+    """Worst distance over frames between the rig's feet, hands and head and where the dance puts them
+    (our FK scaled to the rig's height, from its hips' rest place), as a share of the rig's height."""
+    from test_addon import fk_world, world_heads
+
+    from blender_addon import rigdef
+    from dancenet_core.skeleton import DEFAULT_SKELETON
+
+    rest = {b.name: np.array(rig.matrix_world @ b.head_local) for b in rig.data.bones}
+    tails = np.array([rig.matrix_world @ b.tail_local for b in rig.data.bones])
+    height = float(np.ptp(np.concatenate([np.array(list(rest.values())), tails])[:, 2]))
+    ours = rigdef.rest_heads(DEFAULT_SKELETON) @ rigdef.Y_UP_TO_Z_UP.T
+
+    ours_tails = ours + rigdef.tail_offsets(DEFAULT_SKELETON) @ rigdef.Y_UP_TO_Z_UP.T
+    scale = height / float(np.ptp(np.concatenate([ours, ours_tails])[:, 2]))
+    fk = fk_world(motion)
+    ends = [j for j in ("left_ankle", "right_ankle", "left_foot", "right_foot", "left_wrist", "right_wrist", "head")
+            if j in mapping]
+    idx = [DEFAULT_SKELETON.index(j) for j in ends]
+    worst = 0.0
+    for f in range(0, motion.num_frames, 7):
+        bpy.context.scene.frame_set(first_frame + f)
+        expected = rest[mapping["pelvis"]] + scale * (fk[f, idx] - ours[0])
+        worst = max(worst, float(np.linalg.norm(world_heads(rig, [mapping[j] for j in ends]) - expected, axis=1).max()))
+    return worst / height
+
+
+@pytest.mark.parametrize("convention", list(CONVENTIONS))
+def test_every_convention_is_mapped_automatically_and_lands(scene, addon, song, convention):  # noqa: F811
+    from test_addon import build_armature
+    from test_addon_doubles import convention_rest, synthetic_motion
+
+    key = convention.split()[0]
+    layout = CONVENTIONS[convention]
+    rows = convention_rest(addon.bonemap.load_shipped(key).bones, scale=0.92, arm_scale=1.04, leg_scale=0.97,
+                           **layout)
+    rig = build_armature(f"{convention} rig", rows, mixamo_import=False, seed=len(convention))
+    names = [b.name for b in rig.data.bones]
+    chosen = addon.bonemap.detect(names, rig.name)
+    mapping, _skipped = addon.bonemap.resolve(chosen, names, rig.name)
+    assert chosen.name == addon.bonemap.load_shipped(key).name
+    expected = layout.get("names") or {j: b if isinstance(b, str) else b[0]
+                                       for j, b in addon.bonemap.load_shipped(key).bones.items()}
+    assert all(mapping[j] == expected[j] for j in addon.rigdef.REQUIRED_JOINTS)  # no manual edit
+    scene.render.fps = 30
+    props = scene.dancenet
+    props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
+    error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
+    LANDING[convention] = error
+    assert error < 0.05, error
+
+
+def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, song):  # noqa: F811
+    from test_addon import build_armature, panel_screenshot
+    from test_addon_doubles import convention_rest
+
+    # A DAZ-like rig whose left forearm bone has a name no map knows.
+    rows = convention_rest(addon.bonemap.load_shipped("DAZ").bones, a_pose_deg=45.0)
+    rows = [("lLowerArmX" if b == "lForearmBend" else b, "lLowerArmX" if p == "lForearmBend" else p, h, t)
+            for b, p, h, t in rows]
+    rig = build_armature("Genesis", rows, mixamo_import=False)
+    props = scene.dancenet
+    props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    shot = panel_screenshot()
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
+    assert shown["left elbow: no bone"].icon == "ERROR" and shown["left wrist: lHand"].icon == "CHECKMARK"
+    with pytest.raises(RuntimeError, match="No shipped bone map"):
+        bpy.ops.dancenet.generate()
+
+    props.fix_joint, props.fix_bone = "left_elbow", "lLowerArmX"
+    assert bpy.ops.dancenet.fix_bone() == {"FINISHED"}
+    assert props.bone_map == "TEXT" and '"left_elbow": "lLowerArmX"' in props.bone_map_text.as_string()
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
+    assert shown["left elbow: lLowerArmX"].icon == "CHECKMARK"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+
+    # Saved, the map is found by Auto for the same rig in another file (a fresh scene).
+    assert bpy.ops.dancenet.save_bone_map(name="Genesis custom") == {"FINISHED"}
+    saved = addon.pipeline.saved_maps_dir() / "Genesis_custom.json"
+    assert saved.is_file()
+    rig2 = build_armature("Genesis 2", rows, mixamo_import=False)
+    chosen = addon.bonemap.detect([b.name for b in rig2.data.bones], rig2.name, addon.pipeline.saved_maps_dir())
+    assert chosen.name == "Genesis custom" and chosen.bones["left_elbow"] == "lLowerArmX"
+    saved.unlink()

@@ -178,3 +178,42 @@ def rigify_rest(bone_map: dict[str, str], scale: float = 1.05):
         *bones,
         ("DEF-spine.005", bone_map["neck"], (neck + head) / 2, head),
     ]
+
+
+def convention_rest(bones: dict[str, str | list[str]], scale: float = 1.0, a_pose_deg: float = 0.0,
+                    arm_scale: float = 1.0, leg_scale: float = 1.0, root: str | None = None,
+                    splits: dict[str, str] | None = None, names: dict[str, str] | None = None):
+    """An armature as another tool makes it, Z up in metres: (bone, parent | None, head, tail) rows.
+
+    Shaped after our skeleton (scaled; arms and legs stretched by their own factors, so the rig's
+    proportions are not ours), arms lowered by `a_pose_deg`, bones named by the first name of each joint
+    in `bones` (or `names`), a `root` bone on the floor above the hips if named, and `splits`: joint ->
+    an extra bone halfway to its main child (a twist or in-between spine bone), as those rigs have.
+    """
+    from dancenet_core.kinematics import fk_numpy
+
+    offsets = DEFAULT_SKELETON.offsets.copy()
+    for j, n in enumerate(DEFAULT_SKELETON.names):
+        if any(k in n for k in ("elbow", "wrist", "shoulder")):
+            offsets[j] *= arm_scale
+        if any(k in n for k in ("knee", "ankle")):
+            offsets[j] *= leg_scale
+    s = type(DEFAULT_SKELETON)(offsets * scale)
+    rot = np.zeros((s.num_joints, 3))
+    a = math.radians(a_pose_deg)
+    rot[s.index("left_shoulder")], rot[s.index("right_shoulder")] = (0.0, 0.0, -a), (0.0, 0.0, a)
+    pos = fk_numpy(s, rot, np.array([0.0, s.rest_pelvis_height(), 0.0]))[0]
+    pos = pos @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]).T
+    names = names or {j: (b if isinstance(b, str) else b[0]) for j, b in bones.items()}
+    main = {"pelvis": "spine1", "spine3": "neck"} | {f"{x}_wrist": f"{x}_middle1" for x in ("left", "right")}
+    rows = _armature_bones(s, pos, names, main)
+    for joint, extra in (splits or {}).items():
+        j = s.index(joint)
+        child = s.index(main.get(joint) or next(s.names[c] for c in s.children(j) if s.names[c] in names))
+        mid = (pos[j] + pos[child]) / 2
+        rows = [(b, extra if b == names[s.names[child]] else p, h, t) for b, p, h, t in rows]
+        rows.append((extra, names[joint], mid, pos[child]))
+    if root is not None:
+        rows = [(b, root if b == names["pelvis"] else p, h, t) for b, p, h, t in rows]
+        rows.insert(0, (root, None, np.zeros(3), np.array([0.0, 0.3, 0.0])))
+    return rows
