@@ -7,7 +7,9 @@ Z-up), Q turns our character frame onto the rig's (so a Y-up Mixamo import or a 
 dances facing its own front), and D_j is the smallest rotation taking the rig's rest bone direction onto
 ours (an A-pose arm is first lifted into our T-pose). The pose-bone value is that rotation relative to
 where the bone would be with an identity pose, which for our own rig reduces to
-Rb⁻¹ · (C L_j Cᵀ) · Rb. Positions then follow our FK exactly on our rig and direction-wise elsewhere.
+Rb⁻¹ · (C L_j Cᵀ) · Rb. Positions then follow our FK exactly on our rig and direction-wise elsewhere,
+except that legs and arms bend (two-bone IK in the plane they already bend in) so feet and hands land
+where the dance puts them, scaled like the hips, on a rig whose limbs are longer or shorter than ours.
 """
 
 from __future__ import annotations
@@ -61,6 +63,44 @@ def _leg_length(heads: dict[int, np.ndarray], skeleton: Skeleton) -> float:
         hip, knee, ankle = (skeleton.index(f"{side}_{n}") for n in ("hip", "knee", "ankle"))
         total += np.linalg.norm(heads[knee] - heads[hip]) + np.linalg.norm(heads[ankle] - heads[knee])
     return float(total / 2)
+
+
+# Two-bone limbs (upper joint: middle joint, end joint) whose end is put where the dance puts it.
+_LIMBS = {f"{side}_{upper}": (f"{side}_{mid}", f"{side}_{end}") for side in ("left", "right")
+          for upper, mid, end in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist"))}
+
+
+def _min_rotations(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per row, the smallest rotation [T, 3, 3] turning direction a [T, 3] onto b [T, 3] (Rodrigues)."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    v = np.cross(a, b)
+    cos = np.clip(np.einsum("ti,ti->t", a, b), -1.0 + 1e-9, None)
+    k = np.zeros((len(a), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    k -= np.swapaxes(k, 1, 2)
+    return np.eye(3) + k + k @ k / (1.0 + cos)[:, None, None]
+
+
+def _reach(
+    p_upper: np.ndarray, p_mid: np.ndarray, p_end: np.ndarray, want: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two-bone IK: world turns (for the upper bone, for the lower one) that move the end from `p_end` to
+    `want` (or as near as the bone lengths allow), the limb bending in the plane it already bends in."""
+    a = np.linalg.norm(p_mid - p_upper, axis=-1, keepdims=True)
+    b = np.linalg.norm(p_end - p_mid, axis=-1, keepdims=True)
+    to = want - p_upper
+    d = np.clip(np.linalg.norm(to, axis=-1, keepdims=True), np.abs(a - b) + 1e-6, a + b - 1e-6)
+    u = to / np.maximum(np.linalg.norm(to, axis=-1, keepdims=True), 1e-12)
+    bend = (p_mid - p_upper) - np.einsum("ti,ti->t", p_mid - p_upper, u)[:, None] * u
+    straight = np.linalg.norm(bend, axis=-1, keepdims=True) < 1e-9  # no bend plane: leave the frame alone
+    n = bend / np.maximum(np.linalg.norm(bend, axis=-1, keepdims=True), 1e-12)
+    cos = np.clip((a**2 + d**2 - b**2) / (2 * a * d), -1.0, 1.0)
+    mid = np.where(straight, p_mid, p_upper + a * (cos * u + np.sqrt(1 - cos**2) * n))
+    end = np.where(straight, p_end, p_upper + d * u)
+    turn_upper = _min_rotations(p_mid - p_upper, mid - p_upper)
+    turn_lower = _min_rotations(np.einsum("tij,tj->ti", turn_upper, p_end - p_mid), end - mid) @ turn_upper
+    return turn_upper, turn_lower
 
 
 def root_bone_of(rig: bpy.types.Object, hips: str) -> str | None:
@@ -119,10 +159,20 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
             v_theirs, v_ours = rest[bone][:3, 1], ours_axis[j]
         delta[j] = rigdef.min_rotation(v_theirs, q @ v_ours)
 
-    _, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
+    p, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
     qc = q @ c
     g = qc @ w @ qc.T  # world turns, in Blender axes, on the rig's own frame
     root_target = theirs[0] + scale * (motion.root_positions @ c.T - ours[0]) @ q.T
+
+    def aim(j: int, bone: str) -> np.ndarray:
+        """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest."""
+        return g[:, j] @ (delta[j] @ (rest[bone][:3, :3] / np.linalg.norm(rest[bone][:3, :3], axis=0)))
+
+    def head_offset(parent: str, child: str) -> np.ndarray:
+        """Where `child`'s head sits in `parent`'s posed world frame (bones in between at rest)."""
+        return (np.linalg.inv(rest[parent]) @ rest[child])[:3, 3] * np.linalg.norm(rest[parent][:3, :3], axis=0)
+
+    limb_turn: dict[str, np.ndarray] = {}  # lower limb bone -> its extra world turn from the limb's IK
 
     needed: set[str] = set()
     for bone in mapped.values():
@@ -145,7 +195,21 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
             continue
         # The bone's world scale (the object's, e.g. 0.01 for a Mixamo import) is the same in every pose.
         scale_xyz = np.linalg.norm(rest[name][:3, :3], axis=0)
-        target = g[:, j] @ (delta[j] @ (rest[name][:3, :3] / scale_xyz))
+        target = aim(j, name)
+        if name in limb_turn:
+            target = limb_turn[name] @ target
+        limb = _LIMBS.get(skeleton.names[j])
+        if limb is not None and all(skeleton.index(x) in mapped for x in limb):
+            # Hands and feet go where the dance puts them (scaled like the hips), whatever the rig's limb
+            # proportions: the angles alone would put them elsewhere on a rig built unlike our dancer.
+            jm, je = (skeleton.index(x) for x in limb)
+            lower, end = mapped[jm], mapped[je]
+            p_upper = identity_pose[:, :3, 3] * np.ones((motion.num_frames, 1))
+            p_mid = p_upper + target @ head_offset(name, lower)
+            p_end = p_mid + aim(jm, lower) @ head_offset(lower, end)
+            want = root_target + scale * ((p[:, je] - p[:, 0]) @ c.T) @ q.T
+            turn_upper, limb_turn[lower] = _reach(p_upper, p_mid, p_end, want)
+            target = turn_upper @ target
         basis = np.swapaxes(identity_pose[:, :3, :3] / scale_xyz, -1, -2) @ target
         rotations[name] = _continuous_quaternions(basis)
         m = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()

@@ -30,12 +30,17 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
         box.label(text=str(e), icon="ERROR")
         return
     found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
-    box.label(text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched", icon="BONE_DATA")
-    for joint in REQUIRED_JOINTS:
-        if joint in found:
-            box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}", icon="CHECKMARK")
-        else:
-            box.label(text=f"{joint.replace('_', ' ')}: no bone", icon="ERROR")
+    missing = [j for j in REQUIRED_JOINTS if j not in found]
+    row = box.row()
+    row.prop(props, "show_matches", text="", icon="TRIA_DOWN" if props.show_matches or missing else "TRIA_RIGHT",
+             emboss=False)
+    row.label(text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched", icon="BONE_DATA")
+    if props.show_matches or missing:  # always open while a joint the dance needs has no bone
+        for joint in REQUIRED_JOINTS:
+            if joint in found:
+                box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}", icon="CHECKMARK")
+            else:
+                box.label(text=f"{joint.replace('_', ' ')}: no bone", icon="ERROR")
     row = box.row(align=True)
     row.prop(props, "fix_joint", text="")
     row.prop_search(props, "fix_bone", props.armature.data, "bones", text="")

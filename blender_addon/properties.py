@@ -113,6 +113,8 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     fix_joint: EnumProperty(name="Joint", items=[(j, j.replace("_", " "), "") for j in JOINT_NAMES],
                             description="The dance's joint to give another bone")
     fix_bone: StringProperty(name="Bone", description="The armature's bone that plays the joint")
+    show_matches: BoolProperty(name="Show Matches", default=False,
+                               description="List which bone plays each joint the dance needs")
     bone_map_text: PointerProperty(name="Map Text", type=bpy.types.Text)
     add_markers: BoolProperty(
         name="Beat Markers", default=True, description="Mark bars and beats on the timeline"

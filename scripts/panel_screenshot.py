@@ -86,7 +86,9 @@ class RecordingLayout:
         op = getattr(getattr(bpy.ops, module), name)
         label = op.get_rna_type().name if text is None else text
         enabled = self.enabled and self.active and op.poll()
-        self.children.append(Widget("operator", label, icon, enabled=enabled, icon_only=not label))
+        depress = _.get("depress")
+        kind = "operator" if depress is None else "radio"  # a pressed-in button reads as a chosen item
+        self.children.append(Widget(kind, label, icon, selected=bool(depress), enabled=enabled, icon_only=not label))
         return SimpleNamespace()  # operator properties the panel sets (kept, not drawn)
 
     def prop_search(self, data: bpy.types.bpy_struct, property: str, search_data: bpy.types.bpy_struct,  # noqa: A002

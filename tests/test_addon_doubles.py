@@ -182,17 +182,17 @@ def rigify_rest(bone_map: dict[str, str], scale: float = 1.05):
 
 def convention_rest(bones: dict[str, str | list[str]], scale: float = 1.0, a_pose_deg: float = 0.0,
                     arm_scale: float = 1.0, leg_scale: float = 1.0, root: str | None = None,
-                    splits: dict[str, str] | None = None, names: dict[str, str] | None = None):
+                    splits: dict[str, str] | None = None, names: dict[str, str] | None = None, skeleton=None):
     """An armature as another tool makes it, Z up in metres: (bone, parent | None, head, tail) rows.
 
-    Shaped after our skeleton (scaled; arms and legs stretched by their own factors, so the rig's
+    Shaped after `skeleton` (ours by default; scaled; arms and legs stretched by their own factors, so the rig's
     proportions are not ours), arms lowered by `a_pose_deg`, bones named by the first name of each joint
     in `bones` (or `names`), a `root` bone on the floor above the hips if named, and `splits`: joint ->
     an extra bone halfway to its main child (a twist or in-between spine bone), as those rigs have.
     """
     from dancenet_core.kinematics import fk_numpy
 
-    offsets = DEFAULT_SKELETON.offsets.copy()
+    offsets = (skeleton or DEFAULT_SKELETON).offsets.copy()
     for j, n in enumerate(DEFAULT_SKELETON.names):
         if any(k in n for k in ("elbow", "wrist", "shoulder")):
             offsets[j] *= arm_scale
