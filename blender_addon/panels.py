@@ -31,10 +31,8 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
         return
     found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
     missing = [j for j in REQUIRED_JOINTS if j not in found]
-    row = box.row()
-    row.prop(props, "show_matches", text="", icon="TRIA_DOWN" if props.show_matches or missing else "TRIA_RIGHT",
-             emboss=False)
-    row.label(text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched", icon="BONE_DATA")
+    box.prop(props, "show_matches", text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched",
+             icon="TRIA_DOWN" if props.show_matches or missing else "TRIA_RIGHT", emboss=False)
     if props.show_matches or missing:  # always open while a joint the dance needs has no bone
         for joint in REQUIRED_JOINTS:
             if joint in found:

@@ -1,0 +1,136 @@
+"""The README's "For animators" pictures: the DanceNet panel drawn headless (scripts/panel_screenshot.py)
+after each new step, and a Workbench still of a DAZ-named A-pose rig dancing the shipped model.
+
+Runs the real model: Part of the Song (frames 1-480) with a root bone and three takes on the NLA, Continue
+From Here at frame 241, then a DAZ Genesis-like armature (its bone names, a 45-degree A-pose, twist bones)
+mapped by Auto, danced, skinned with one capsule per bone and rendered.
+
+    .venv/bin/python scripts/animator_screenshots.py [--song examples/example_song.ogg] [--out docs/animators]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "scripts"), str(ROOT / "tests")]
+
+from panel_screenshot import paint, record_panel  # noqa: E402
+from test_addon_doubles import convention_rest  # noqa: E402 (the DAZ-like rig the landing test builds)
+
+DAZ_TWISTS = {"left_shoulder": "lShldrTwist", "right_shoulder": "rShldrTwist", "left_elbow": "lForearmTwist",
+              "right_elbow": "rForearmTwist", "left_hip": "lThighTwist", "right_hip": "rThighTwist"}
+
+
+def build_armature(name: str, rows: list) -> bpy.types.Object:
+    """An armature object from (bone, parent, head, tail) rows (Z up, metres)."""
+    data = bpy.data.armatures.new(name)
+    obj = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    with bpy.context.temp_override(active_object=obj, object=obj):
+        bpy.ops.object.mode_set(mode="EDIT")
+        for bone, _parent, head, tail in rows:
+            eb = data.edit_bones.new(bone)
+            eb.head, eb.tail = head, tail
+        for bone, parent, _head, _tail in rows:
+            if parent is not None:
+                data.edit_bones[bone].parent = data.edit_bones[parent]
+        bpy.ops.object.mode_set(mode="OBJECT")
+    return obj
+
+
+def skin_capsules(rig: bpy.types.Object, radius: float = 0.035) -> None:
+    """One stretched UV sphere per bone, weighted fully to it: enough body to see the rig dance."""
+    verts, faces, groups = [], [], []
+    for bone in rig.data.bones:
+        head, tail = np.array(bone.head_local), np.array(bone.tail_local)
+        axis = tail - head
+        length = float(np.linalg.norm(axis))
+        y = axis / length
+        x = np.cross(y, [0.0, 0.0, 1.0] if abs(y[2]) < 0.9 else [1.0, 0.0, 0.0])
+        x /= np.linalg.norm(x)
+        z = np.cross(x, y)
+        r = radius * (0.35 if any(k in bone.name for k in ("Thumb", "Index", "Mid", "Ring", "Pinky")) else 1.0)
+        base = len(verts)
+        rings, segs = 6, 8
+        for i in range(rings + 1):
+            phi = np.pi * i / rings
+            for k in range(segs):
+                th = 2 * np.pi * k / segs
+                across = r * np.sin(phi) * (np.cos(th) * x + np.sin(th) * z)
+                verts.append((head + tail) / 2 + y * np.cos(phi) * length * 0.6 + across)
+        for i in range(rings):
+            for k in range(segs):
+                a, b = base + i * segs + k, base + i * segs + (k + 1) % segs
+                faces.append((a, b, b + segs, a + segs))
+        groups.append((bone.name, range(base, len(verts))))
+    mesh = bpy.data.meshes.new(f"{rig.name} body")
+    mesh.from_pydata([tuple(v) for v in verts], [], faces)
+    body = bpy.data.objects.new(mesh.name, mesh)
+    bpy.context.scene.collection.objects.link(body)
+    body.parent = rig
+    for name, indices in groups:
+        body.vertex_groups.new(name=name).add(list(indices), 1.0, "REPLACE")
+    body.modifiers.new("Armature", "ARMATURE").object = rig
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--song", type=Path, default=ROOT / "examples" / "example_song.ogg")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "animators")
+    args = parser.parse_args(argv)
+    import blender_addon
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    blender_addon.register()
+    args.out.mkdir(parents=True, exist_ok=True)
+    scene = bpy.context.scene
+    scene.render.fps = 24
+    props = scene.dancenet
+
+    def shot(name: str) -> None:
+        image = paint(record_panel(bpy.context))
+        image.save(args.out / name, optimize=True)
+        print(f"animator_screenshots: {args.out / name} ({image.width}x{image.height})")
+
+    props.music_source, props.music_file = "FILE", str(args.song.resolve())
+    props.use_part, props.part_start, props.part_end = True, 1, 480
+    props.root_motion, props.takes, props.seed = "root-bone", 3, 1
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    shot("1_part_root_takes.png")
+    scene.frame_set(241)
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
+    shot("2_continue.png")
+
+    daz = blender_addon.bonemap.load_shipped("DAZ").bones
+    rig = build_armature("Genesis 8 (DAZ names)", convention_rest(daz, a_pose_deg=45.0, splits=DAZ_TWISTS))
+    rig.location = (1.5, 0.0, 0.0)
+    props.target, props.armature, props.bone_map = "EXISTING", rig, "AUTO"
+    props.root_motion, props.takes = "travel", 1
+    shot("3_foreign_rig.png")
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+
+    skin_capsules(rig)
+    for obj in list(bpy.data.objects):  # only the DAZ rig in the picture
+        if obj.type in {"ARMATURE", "MESH"} and obj != rig and obj.parent != rig:
+            obj.hide_render = True
+    from blender_addon import render
+
+    render.setup_preview(scene, rig, args.out / "unused.mp4", (640, 480), root_bone="hip")
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = str(args.out / "4_daz_rig_dancing.png")
+    scene.frame_set(150)
+    bpy.ops.render.render(write_still=True)
+    print(f"animator_screenshots: {args.out / '4_daz_rig_dancing.png'}")
+    blender_addon.unregister()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
