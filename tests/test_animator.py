@@ -3,7 +3,7 @@ continuing a dance from a frame (the add-on's side is in test_addon_animator.py)
 
 from __future__ import annotations
 
-import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -16,15 +16,16 @@ from dancenet_core.motion import FRAME_RATES, Motion
 
 
 @pytest.fixture(scope="module")
-def song(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """12 s of a 110-BPM click over a tone, with the feature cache in the test's own folder."""
+def song(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """12 s of a 110-BPM click over a tone, with the feature cache in the test's own folder (for this module)."""
     folder = tmp_path_factory.mktemp("song")
-    os.environ["DANCENET_CACHE"] = str(folder / "cache")
-    sr = 22050
-    t = np.arange(int(12.0 * sr)) / sr
-    y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / 110) < 0.01)
-    sf.write(folder / "clicks.wav", y.astype(np.float32), sr)
-    return folder / "clicks.wav"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("DANCENET_CACHE", str(folder / "cache"))
+        sr = 22050
+        t = np.arange(int(12.0 * sr)) / sr
+        y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / 110) < 0.01)
+        sf.write(folder / "clicks.wav", y.astype(np.float32), sr)
+        yield folder / "clicks.wav"
 
 
 def generate(song: Path, out: Path, *extra: str) -> Motion:
