@@ -2,8 +2,9 @@
 after each new step, and a Workbench still of a DAZ-named A-pose rig dancing the shipped model.
 
 Runs the real model: Part of the Song (frames 1-480) with a root bone and three takes on the NLA, Continue
-From Here at frame 241, then a DAZ Genesis-like armature (its bone names, a 45-degree A-pose, twist bones)
-mapped by Auto, danced, skinned with one capsule per bone and rendered.
+From Here at frame 241, then a DAZ Genesis-like armature (its bone names, one of them renamed, a 45-degree
+A-pose, twist bones) mapped by Auto, its left elbow set by hand, danced, skinned with one capsule per bone
+and rendered.
 
     .venv/bin/python scripts/animator_screenshots.py [--song examples/example_song.ogg] [--out docs/animators]
 """
@@ -109,11 +110,16 @@ def main(argv: list[str] | None = None) -> int:
     shot("2_continue.png")
 
     daz = blender_addon.bonemap.load_shipped("DAZ").bones
-    rig = build_armature("Genesis 8 (DAZ names)", convention_rest(daz, a_pose_deg=45.0, splits=DAZ_TWISTS))
+    rows = convention_rest(daz, a_pose_deg=45.0, splits=DAZ_TWISTS)
+    # One bone renamed by hand, as rigs often have: Auto finds the rest, the panel says what is missing.
+    rows = [tuple("lElbow_custom" if x == "lForearmBend" else x for x in row[:2]) + row[2:] for row in rows]
+    rig = build_armature("Genesis 8 (DAZ names)", rows)
     rig.location = (1.5, 0.0, 0.0)
     props.target, props.armature, props.bone_map = "EXISTING", rig, "AUTO"
     props.root_motion, props.takes = "travel", 1
+    props.fix_joint, props.fix_bone = "left_elbow", "lElbow_custom"
     shot("3_foreign_rig.png")
+    assert bpy.ops.dancenet.fix_bone() == {"FINISHED"}
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
 
     skin_capsules(rig)
