@@ -89,6 +89,7 @@ class _DanceNetPanel:
         col.prop(props, "takes")
         col.prop(props, "footfix")
         col.prop(props, "add_markers")
+        col.prop(context.scene.render, "fps", text="Frame Rate")  # the dance is resampled to the scene's rate
         col.prop(props, "root_motion")
         col.prop(props, "use_part")
         if props.use_part:

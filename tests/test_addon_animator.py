@@ -11,6 +11,18 @@ from test_addon import addon, bpy, scene, song  # noqa: F401 (fixtures)
 from test_addon_doubles import CALLS, make_fake_generator, write_song
 
 
+def test_panel_frame_rate_is_the_scenes_and_the_keys_follow_it(scene, addon, song):  # noqa: F811
+    from test_addon import panel_screenshot
+
+    scene.render.fps = 50
+    shot = panel_screenshot()
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
+    assert shown["Frame Rate"].value == "50"
+    scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert keyed_range() == (1, 100)  # the fake's 2-s dance at 30 fps, slerp-resampled to 50
+
+
 def test_batch_fps_resamples_onto_the_scene_rate(addon, tmp_path, capsys):  # noqa: F811
     from blender_addon import batch
 
