@@ -6,7 +6,8 @@ PY := .venv/bin/python
 setup:
 	@bash scripts/setup.sh
 
-test: setup
+# The linters first (seconds): ruff, and import-linter's layering contracts (pyproject.toml).
+test: lint
 	@bash scripts/run_tests.sh
 
 # The add-on tests again on Blender 5.0's API (bpy 5.0.1 in its own .venv-blender5; `make test` runs 4.5 LTS).
@@ -18,6 +19,7 @@ demo: setup
 
 lint: setup
 	@.venv/bin/ruff check .
+	@.venv/bin/lint-imports --no-cache
 
 bench: setup
 	@$(PY) bench/run.py

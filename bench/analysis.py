@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import soundfile as sf
 
-from dancenet_core import features
-from dancenet_core.audio import MADMOM_SAMPLE_RATE
-from dancenet_core.features import analyze_music
+from dancenet_core.music import features
+from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
+from dancenet_core.music.features import analyze_music
 
 REPO = Path(__file__).resolve().parents[1]
 

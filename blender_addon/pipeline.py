@@ -490,7 +490,7 @@ def _keep_users_action(target: bpy.types.Object) -> str | None:
 def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
     """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take."""
 
-    from . import keyframes  # needs scipy and torch (the core's FK): importable only once dependencies are in
+    from . import keyframes  # needs scipy (the core's FK): importable only once dependencies are in
 
     scene = context.scene
     place, req = plan.placement, plan.request

@@ -1,13 +1,11 @@
 """Weights files: written as plain data (tensors, lists, dicts, numbers, strings) and read with
 `torch.load(weights_only=True)`, so a crafted file cannot run code; every failure is one line a user can act on.
 Files from before this format are converted once, by someone who trusts them, with
-`python -m dancenet_core.checkpoint upgrade FILE...` (same numbers)."""
+`dancenet weights upgrade FILE...` (same numbers)."""
 
 from __future__ import annotations
 
-import argparse
 import pickle
-import sys
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -18,7 +16,7 @@ import torch
 from .atomic import atomic_path
 from .errors import DanceNetError, first_line
 
-UPGRADE_HINT = "python -m dancenet_core.checkpoint upgrade"
+UPGRADE_HINT = "dancenet weights upgrade"
 
 
 def to_plain(obj: Any) -> Any:
@@ -74,19 +72,3 @@ def upgrade(path: Path) -> None:
     """Re-save a trusted weights file of the old pickled format as plain data (numbers unchanged)."""
     d = torch.load(path, map_location="cpu", weights_only=False)
     save_weights(d, path)
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m dancenet_core.checkpoint")
-    sub = p.add_subparsers(dest="command", required=True)
-    up = sub.add_parser("upgrade", help="convert TRUSTED old weights files in place to the safe format")
-    up.add_argument("files", nargs="+", type=Path)
-    args = p.parse_args(argv)
-    for f in args.files:
-        upgrade(f)
-        print(f"{f}: plain weights")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,4 +1,4 @@
-"""`dancenet` command line. Each subcommand registers its parser here and runs lazily."""
+"""`dancenet` command line: the commands of `commands/`, each imported only when it runs."""
 
 from __future__ import annotations
 
@@ -7,22 +7,23 @@ import importlib
 import signal
 import sys
 import threading
-from collections.abc import Callable
 
+from . import __version__
+from .commands import COMMANDS
 from .errors import DanceNetError
 
-Handler = Callable[[argparse.Namespace], int]
 
-# Modules that define `add_parser(subparsers)`, which registers a subcommand and sets its `handler`
-# with `set_defaults(handler=...)`. Keep imports of heavy libraries inside the handlers.
-_COMMAND_MODULES: list[str] = ["generate_cmd", "data.build", "analyze", "render_cmd", "comparison"]
-
-
-def _build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str]) -> argparse.ArgumentParser:
+    """The parser, with the options of the command named in `argv` (the first word that is not an option);
+    the other commands are listed by name and help only."""
     parser = argparse.ArgumentParser(prog="dancenet", description="Music-driven dance generation.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    for name in _COMMAND_MODULES:
-        importlib.import_module(f"dancenet_core.{name}").add_parser(sub)
+    parser.add_argument("--version", action="version", version=f"dancenet {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    chosen = next((a for a in argv if not a.startswith("-")), None)
+    for name, help_text in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if name == chosen:
+            importlib.import_module(f"{__package__}.commands.{name.replace('-', '_')}").add_arguments(p)
     return parser
 
 
@@ -32,7 +33,8 @@ def _terminate(signum: int, _frame: object) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminate)
     try:

@@ -16,13 +16,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from .data.build import music_at_frames
+from .continuation import join_kept
 from .errors import DanceNetError
 from .motion import Motion
+from .music.features import FPS as MUSIC_FPS
+from .music.features import MusicAnalysis, analyze_music, music_at_frames
+from .progress import Progress, StageProgress
 from .representation import FeatureLayout, decode, encode
 
 if TYPE_CHECKING:
-    from .features import MusicAnalysis
+    from .model.bundle import DanceNetBundle
+    from .model.footfix import FootFixer
+    from .model.sampler import Sampling
+    from .music.style import StyleModel
 
 # Sampling temperature (scales the mixture's sigma), as the authors sample. At 0 the dance is the mixture's
 # mean and freezes within a minute; above ~0.3 per-frame noise shows as jitter.
@@ -34,8 +40,6 @@ MAX_TAKES = 100
 # The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).
 MIN_PART_S = 1.0
 OUTPUT_SMOOTHING_FRAMES = 1.0
-
-Progress = Callable[[str, float], None]
 
 
 class GenerationCancelled(Exception):
@@ -56,18 +60,29 @@ class GenerationResult:
     start_s: float = 0.0  # where the dance starts in the song; beat times count from there
 
 
+# The trained networks run on torch (about 4 s to load), loaded with the first dance rather than with this
+# module: what imports it for its types and constants (the add-on, the commands' options, tests) needs no
+# torch, and a torch-free runtime (issue 15) is to take their place.
 @lru_cache(maxsize=2)
-def load_bundle(path: str | None = None):  # noqa: ANN201 (lazy import keeps torch off the import path)
-    from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+def load_bundle(path: str | None = None) -> DanceNetBundle:
+    from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle  # torch: see above
 
     return DanceNetBundle.load(path or DEFAULT_BUNDLE)
 
 
 @lru_cache(maxsize=1)
-def _style_model():  # noqa: ANN202 (lazy import keeps torch off the import path)
-    from .style import StyleModel
+def _style_model() -> StyleModel:
+    from .music.style import StyleModel  # torch: see above
 
     return StyleModel.load()
+
+
+@lru_cache(maxsize=1)
+def foot_fixer() -> FootFixer:
+    """The shipped Foot Constraint Model (loaded once)."""
+    from .model.footfix import FootFixer  # torch: see above
+
+    return FootFixer.load()
 
 
 def available_styles(weights: str | None = None) -> list[str]:
@@ -92,22 +107,23 @@ def choose_style(
     return max(known, key=known.get), probs
 
 
-def sample_dance(bundle, cond: np.ndarray, first: np.ndarray, sampling, progress=None,  # noqa: ANN001
-                 should_stop=None, prefix: np.ndarray | None = None) -> list[np.ndarray]:  # noqa: ANN001
+def sample_dance(bundle: DanceNetBundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,
+                 progress: Progress | None = None, should_stop: Callable[[], bool] | None = None,
+                 prefix: np.ndarray | None = None) -> list[np.ndarray]:
     """Sample frames for each take and return them unnormalised [T, D], lightly smoothed.
 
     Each frame's mixture draw adds independent noise; a Gaussian of one frame (40 ms at 25 fps; the
     authors smooth with sigma 1 at 60 fps) over the continuous channels takes that jitter out without
     blurring the steps. Contacts stay as predicted.
     """
-    from .model.sampler import CachedSampler
+    from .model.sampler import CachedSampler  # torch: see load_bundle
 
     frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop,
                                                 prefix=prefix)
     return [finish_frames(bundle, take) for take in frames]
 
 
-def finish_frames(bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:  # noqa: ANN001
+def finish_frames(bundle: DanceNetBundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:
     """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance);
     `smoothing` is the Gaussian's sigma in frames (0: none)."""
     cont = bundle.model.cfg.continuous_dim
@@ -125,7 +141,7 @@ def check_part(start_s: float, end_s: float | None) -> None:
         raise DanceNetError(f"end ({end_s} s) must be at least {MIN_PART_S:g} s after start ({start_s} s)")
 
 
-def kept_frames(bundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:  # noqa: ANN001
+def kept_frames(bundle: DanceNetBundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:
     """The dance kept up to `at_s` seconds as the model's normalised frames [K, D] at its frame rate, or a
     one-line error when there is not enough of it before `at_s`, or of the song after."""
     fps = bundle.model.cfg.fps
@@ -179,9 +195,7 @@ def check_request(song: str | Path, style: str, seed: int, temperature: float, t
     if style != "auto" and style not in styles:
         raise DanceNetError(f"unknown style '{style}'; choose auto or one of: {', '.join(styles)}")
     if footfix:
-        from .footfix import shipped_fixer
-
-        shipped_fixer()
+        foot_fixer()
 
 
 def generate_dance(
@@ -191,7 +205,7 @@ def generate_dance(
     temperature: float = DEFAULT_TEMPERATURE,
     takes: int = 1,
     footfix: bool = True,
-    progress: Progress | None = None,
+    progress: StageProgress | None = None,
     should_cancel: Callable[[], bool] | None = None,
     weights: str | None = None,
     start_s: float = 0.0,
@@ -204,9 +218,7 @@ def generate_dance(
     to that part), its first `at_s` seconds are kept and the rest is danced anew after them: the model
     hears the kept frames as its own, so the join flows. Same arguments, same seed: the same dance, bit
     for bit."""
-    from .features import FPS as MUSIC_FPS
-    from .features import analyze_music
-    from .model.sampler import Sampling, music_conditioning
+    from .model.sampler import Sampling, music_conditioning  # torch: see load_bundle
 
     check_request(song, style, seed, temperature, takes, footfix, weights, start_s, end_s)
     report = progress or (lambda _s, _f: None)
@@ -253,17 +265,13 @@ def generate_dance(
     if footfix:
         t = time.perf_counter()
         report("cleaning feet", 0.0)
-        from .footfix import shipped_fixer
-
-        fixer = shipped_fixer()
+        fixer = foot_fixer()
         takes_feats = [fixer(f) for f in takes_feats]
         timings["footfix_s"] = time.perf_counter() - t
     t = time.perf_counter()
     if prefix is None:
         motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]
     else:
-        from .continuation import join_kept
-
         kept = continue_from.resampled(cfg.fps)
         motions = [join_kept(kept, f, prefix.shape[1], bundle.skeleton) for f in takes_feats]
     contacts = [f[:, layout.contacts] for f in takes_feats]

@@ -12,12 +12,15 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import multiprocessing as mp
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -27,15 +30,16 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from .atomic import atomic_path
+from .environment import default_workers
 from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
+from .progress import Progress
 from .skeleton import Skeleton
 
 if TYPE_CHECKING:
     import pyrender
 
-Progress = Callable[[float], None]
 
 BACKGROUND_RGB: tuple[int, int, int] = (206, 219, 236)  # the sky above the floor's far edge
 YFOV = float(np.radians(40.0))
@@ -268,7 +272,7 @@ def _build_figure(skeleton: Skeleton, unit: float, px_per_m: float) -> _Figure:
     a bigger sphere for the head; left side blue, right side orange. Each part is tessellated only as
     finely as its size on screen needs (`px_per_m`, pixels per metre of a 1.70 m figure): llvmpipe's cost
     goes by triangles, and a finger a pixel across needs no 320-face sphere."""
-    import trimesh
+    import trimesh  # the render extra, and 1.4 s to load: only drawing needs it
 
     @functools.cache
     def sphere(subdivisions: int) -> trimesh.Trimesh:
@@ -352,7 +356,7 @@ class _Stage:
     """A pyrender scene of one dance: the figure, re-posed each frame, on a floor, lit, with a camera."""
 
     def __init__(self, motion: Motion, width: int, height: int, floor: float) -> None:
-        import pyrender
+        import pyrender  # the render extra; it loads OpenGL, which must wait until a window system is chosen
 
         self.pyrender = pyrender
         skel = motion.skeleton
@@ -468,8 +472,6 @@ def iter_frames(
     From _PARALLEL_MIN_FRAMES frames on, `workers` processes (default: $DANCENET_WORKERS, else up to 2;
     1 inside Blender) draw chunks of frames side by side, each with its own OpenGL context.
     """
-    from .features import _default_workers
-
     _check_size(width, height)
     frames = np.arange(motion.num_frames) if frame_indices is None else np.asarray(frame_indices, dtype=int)
     if frames.size and (frames.min() < 0 or frames.max() >= motion.num_frames):
@@ -479,7 +481,7 @@ def iter_frames(
     cams = camera_path(motion, width, height) if cameras is None else list(cameras)
     if len(cams) != motion.num_frames:
         raise ValueError(f"need one camera per frame ({motion.num_frames}), got {len(cams)}")
-    workers = _default_workers() if workers is None else workers
+    workers = default_workers() if workers is None else workers
     if workers > 1 and len(frames) >= _PARALLEL_MIN_FRAMES:
         yield from _iter_parallel(motion, frames, width, height, floor, cams, workers)
         return
@@ -498,10 +500,6 @@ def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, 
     flight, so memory stays bounded whatever the dance's length. Workers are forked (no start-up cost)
     while this process holds no OpenGL state, else spawned, since a forked copy of loaded Mesa state is not
     safe to draw with (spawning needs the usual `if __name__ == "__main__"` guard in a calling script)."""
-    import multiprocessing as mp
-    from collections import deque
-    from concurrent.futures import Future, ProcessPoolExecutor
-
     chunks = [frames[i:i + _WORKER_CHUNK] for i in range(0, len(frames), _WORKER_CHUNK)]
     pending: deque[Future] = deque()
     method = "fork" if "OpenGL" not in sys.modules and "fork" in mp.get_all_start_methods() else "spawn"
@@ -551,7 +549,7 @@ def render_frames(
 
 
 def _save_png(image: np.ndarray, path: Path) -> None:
-    from PIL import Image
+    from PIL import Image  # Pillow comes with the render extra
 
     with atomic_path(path) as tmp:  # a killed run never leaves half a PNG
         Image.fromarray(image).save(tmp, compress_level=1)
@@ -588,7 +586,7 @@ def contact_sheet(
     Given (caption, motion) pairs instead, each motion gets its own block of `rows` rows, one under the other,
     with its caption on every cell: the same moments of a real and a generated dance, compared by eye.
     """
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw, ImageFont  # Pillow comes with the render extra
 
     if cols < 1 or rows < 1:
         raise DanceNetError(f"a contact sheet needs at least 1x1 cells, got {cols}x{rows}")

@@ -32,6 +32,9 @@ PARENTS: tuple[int, ...] = (
 
 NUM_JOINTS = len(JOINT_NAMES)
 JOINT_INDEX: dict[str, int] = {n: i for i, n in enumerate(JOINT_NAMES)}
+# The SMPL body joints 0..21 (hands follow): what the fit, the metrics and the motion style net read.
+# Every parent precedes its child.
+BODY_JOINTS = 22
 
 # Left-side offsets; the right side is their mirror (x -> -x).
 _BODY_LEFT: dict[str, tuple[float, float, float]] = {

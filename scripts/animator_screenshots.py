@@ -19,10 +19,10 @@ import bpy
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "scripts"), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "scripts"), str(ROOT / "tests" / "addon")]
 
+from doubles import convention_rest  # noqa: E402 (the DAZ-like rig the landing test builds)
 from panel_screenshot import paint, record_panel  # noqa: E402
-from test_addon_doubles import convention_rest  # noqa: E402 (the DAZ-like rig the landing test builds)
 
 DAZ_TWISTS = {"left_shoulder": "lShldrTwist", "right_shoulder": "rShldrTwist", "left_elbow": "lForearmTwist",
               "right_elbow": "rForearmTwist", "left_hip": "lThighTwist", "right_hip": "rThighTwist"}

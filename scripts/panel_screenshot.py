@@ -78,7 +78,7 @@ class RecordingLayout:
     def label(self, text: str = "", icon: str = "NONE") -> None:
         self.children.append(Widget("label", text, icon, enabled=self.enabled))
 
-    def progress(self, factor: float = 0.0, type: str = "BAR", text: str = "") -> None:  # noqa: A002 (bpy's name)
+    def progress(self, factor: float = 0.0, type: str = "BAR", text: str = "") -> None:  # bpy's own parameter names
         self.children.append(Widget("progress", text, factor=factor, enabled=self.enabled))
 
     def operator(self, operator: str, text: str | None = None, icon: str = "NONE", **_: Any) -> SimpleNamespace:
@@ -91,7 +91,7 @@ class RecordingLayout:
         self.children.append(Widget(kind, label, icon, selected=bool(depress), enabled=enabled, icon_only=not label))
         return SimpleNamespace()  # operator properties the panel sets (kept, not drawn)
 
-    def prop_search(self, data: bpy.types.bpy_struct, property: str, search_data: bpy.types.bpy_struct,  # noqa: A002
+    def prop_search(self, data: bpy.types.bpy_struct, property: str, search_data: bpy.types.bpy_struct,
                     search_property: str, text: str = "", icon: str = "NONE") -> None:
         self.children.append(Widget("pointer", text, "BONE_DATA", value=str(getattr(data, property)),
                                     enabled=self.enabled and self.active))
@@ -100,7 +100,7 @@ class RecordingLayout:
         self.children.append(Widget("menu", "", icon, value=text, enabled=self.enabled and self.active))
 
     def prop(
-        self, data: bpy.types.bpy_struct, property: str, text: str | None = None, icon: str = "NONE",  # noqa: A002
+        self, data: bpy.types.bpy_struct, property: str, text: str | None = None, icon: str = "NONE",
         expand: bool = False, **_: Any,
     ) -> None:  # fmt: skip
         self.children.append(_prop_widgets(data, property, text, icon, expand, self.enabled and self.active))

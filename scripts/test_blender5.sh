@@ -26,4 +26,4 @@ export HOME="$SCRATCH/home" BLENDER_USER_RESOURCES="$SCRATCH/blender" MPLBACKEND
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 mkdir -p "$HOME"
 "$VENV/bin/python" -c "import bpy; print('test-blender5: bpy', bpy.app.version_string, 'from', bpy.__file__)"
-exec "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@" tests/test_addon*.py
+exec "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$@" tests/addon

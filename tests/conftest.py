@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def data_root() -> Path:
-    return Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data"))
+import torch
+from made_up import data_root
 
 
 @pytest.fixture(scope="session")
@@ -20,3 +15,12 @@ def shared_data() -> Path:
     if not (root / "dance_with_melody").is_dir():
         pytest.skip(f"real data not found at {root} (set DANCENET_DATA)")
     return root
+
+
+@pytest.fixture
+def one_torch_thread() -> object:
+    """Two OpenMP threads on a busy two-core machine are many times slower than one."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)

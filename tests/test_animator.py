@@ -39,7 +39,8 @@ def test_fps_resamples_the_same_dance_with_slerp(song: Path, tmp_path: Path) -> 
     for fps in (24, 60):
         m = generate(song, tmp_path / str(fps), "--fps", str(fps))
         bvh = read_bvh(tmp_path / str(fps) / "clicks.bvh")
-        assert m.fps == fps and bvh.frame_time == pytest.approx(1 / fps, abs=1e-8)
+        assert m.fps == fps
+        assert bvh.frame_time == pytest.approx(1 / fps, abs=1e-8)
         assert m.num_frames == round(own.duration * fps) == bvh.num_frames
         ref = own.resampled(fps)  # the one resampler the add-on and batch mode use too
         np.testing.assert_allclose(m.positions(), ref.positions(), atol=1e-4)
@@ -53,15 +54,16 @@ def test_fps_outside_the_offered_rates_is_one_line(song: Path, tmp_path: Path, c
     with pytest.raises(SystemExit) as e:
         cli_main(["generate", str(song), "-o", str(tmp_path), "--fps", "23"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert e.value.code == 2 and "--fps" in err[-1] and "invalid choice" in err[-1]
+    assert e.value.code == 2
+    assert "--fps" in err[-1]
+    assert "invalid choice" in err[-1]
 
 
 def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path: Path, monkeypatch) -> None:
     import json
 
-    from dancenet_core.data.build import music_at_frames
-    from dancenet_core.features import FPS, analyze_music
     from dancenet_core.model import sampler
+    from dancenet_core.music.features import FPS, analyze_music, music_at_frames
 
     heard = []
     real = sampler.music_conditioning
@@ -73,7 +75,9 @@ def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path:
     np.testing.assert_allclose(heard[0], music_at_frames(analysis.features, FPS, 4 + np.arange(150) / 25), atol=1e-6)
     summary = json.loads((tmp_path / "clicks.json").read_text())
     inside = analysis.beat_times[(analysis.beat_times >= 4) & (analysis.beat_times < 10)]
-    assert summary["start_s"] == 4 and summary["duration_s"] == 6 and summary["beats"] == len(inside)
+    assert summary["start_s"] == 4
+    assert summary["duration_s"] == 6
+    assert summary["beats"] == len(inside)
     # The preview plays the part that was danced: its first click is the song's first after 4 s (4.36 s).
     import subprocess
 
@@ -92,7 +96,9 @@ def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path:
 def test_bad_parts_are_one_line_errors(song: Path, tmp_path: Path, capsys, args, message) -> None:
     assert cli_main(["generate", str(song), "-o", str(tmp_path), *args]) == 2
     err = capsys.readouterr().err.strip()
-    assert message in err and "\n" not in err and not list(tmp_path.glob("*.bvh"))
+    assert message in err
+    assert "\n" not in err
+    assert not list(tmp_path.glob("*.bvh"))
 
 
 def test_root_motion_modes_carry_the_same_dance(song: Path, tmp_path: Path) -> None:
@@ -111,7 +117,9 @@ def test_root_motion_modes_carry_the_same_dance(song: Path, tmp_path: Path) -> N
 
     generate(song, tmp_path / "bone", "--fps", "30", "--root-motion", "root-bone")
     data = read_bvh(tmp_path / "bone" / "clicks.bvh")
-    assert data.names[:2] == ("root", "pelvis") and data.parents[1] == 0 and data.fps == 30
+    assert data.names[:2] == ("root", "pelvis")
+    assert data.parents[1] == 0
+    assert data.fps == 30
     world = data.world_positions()
     np.testing.assert_allclose(world[:, 0, 1], 0.0, atol=1e-6)  # the root stays on the floor...
     np.testing.assert_allclose(world[:, 0, [0, 2]], travel.root_positions[:, [0, 2]], atol=1e-5)  # ...under the hips
@@ -138,12 +146,14 @@ def test_continue_keeps_the_dance_and_joins_without_a_pop(song: Path, tmp_path: 
                      "--at", "6"]) == 0
     cont = Motion.load(tmp_path / "b" / "clicks.npz")
     join = 180  # 6 s at the kept dance's 30 fps
-    assert cont.fps == 30 and cont.num_frames == original.num_frames
+    assert cont.fps == 30
+    assert cont.num_frames == original.num_frames
     # Up to the join: the kept dance (as read back from its BVH); after it: a new dance.
     np.testing.assert_allclose(cont.positions()[:join], original.positions()[:join], atol=1e-4)
     assert np.abs(cont.positions()[join + 15 :] - original.positions()[join + 15 :]).max() > 0.05
     got = join_continuity(cont, join)
-    assert got["step"] <= got["step_p95"] and got["dv"] <= got["dv_p95"], got
+    assert got["step"] <= got["step_p95"], got
+    assert got["dv"] <= got["dv_p95"], got
 
     # The measure does see a pop: the kept dance cut onto another seed's dance at the same frame fails it.
     other = generate(song, tmp_path / "c", "--fps", "30", "--seed", "11")

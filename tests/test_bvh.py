@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import data_root
+from made_up import data_root
 from scipy.spatial.transform import Rotation
 
 from dancenet_core.bvh import BvhData, BvhParseError, read_bvh, write_bvh, write_bvh_data
@@ -66,8 +66,11 @@ def _line_of(text: str, needle: str, occurrence: int = 1) -> int:
 
 def test_chain_matches_hand_computed_fk(tmp_path: Path) -> None:
     data = read_bvh(_write_text(tmp_path, CHAIN))
-    assert data.names == ("hips", "knee", "ankle") and data.parents == (-1, 0, 1)
-    assert data.fps == 25.0 and data.num_frames == 3 and data.values.shape == (3, 12)
+    assert data.names == ("hips", "knee", "ankle")
+    assert data.parents == (-1, 0, 1)
+    assert data.fps == 25.0
+    assert data.num_frames == 3
+    assert data.values.shape == (3, 12)
     assert data.end_sites == (EndSite("ankle_end", 2, (0.0, 0.0, 0.5)),)
     expected = np.array(
         [
@@ -214,7 +217,9 @@ def test_nested_layouts_end_sites_and_second_root(tmp_path: Path) -> None:
     path = tmp_path / "again.bvh"
     write_bvh_data(path, data)
     again = read_bvh(path)
-    assert again.names == data.names and again.channels == data.channels and again.end_sites == data.end_sites
+    assert again.names == data.names
+    assert again.channels == data.channels
+    assert again.end_sites == data.end_sites
     np.testing.assert_allclose(again.world_positions(), pos, atol=1e-9)
 
 
@@ -244,12 +249,15 @@ def test_default_skeleton_round_trip(tmp_path: Path, order: str) -> None:
     assert data.channels[0] == ("Xposition", "Yposition", "Zposition", *(f"{a}rotation" for a in order))
     assert {len(c) for c in data.channels[1:]} == {3}
     back = data.to_motion()
-    assert back.skeleton is DEFAULT_SKELETON and back.fps == 30.0
+    assert back.skeleton is DEFAULT_SKELETON
+    assert back.fps == 30.0
     np.testing.assert_allclose(back.positions(), motion.positions(), atol=TOL)
     np.testing.assert_allclose(back.end_effectors(), motion.end_effectors(), atol=TOL)
     # The paper's end-effectors are End Sites; leaf joints without one get a short one.
     ends = {s.name: s for s in data.end_sites}
-    assert "left_foot_end" in ends and "head_end" in ends and "left_wrist_end" in ends
+    assert "left_foot_end" in ends
+    assert "head_end" in ends
+    assert "left_wrist_end" in ends
     thumb_bone = DEFAULT_SKELETON.offsets[DEFAULT_SKELETON.index("left_thumb3")]
     np.testing.assert_allclose(ends["left_thumb3_end"].offset, thumb_bone / 2, atol=1e-6)
 
@@ -269,7 +277,8 @@ def test_write_scale_and_custom_skeleton(tmp_path: Path) -> None:
     np.testing.assert_allclose(data.world_positions(), motion.positions() * 100.0, atol=TOL)
     assert [(s.name, s.parent) for s in data.end_sites] == [("c_end", 2), ("d_end", 3)]
     back = data.to_motion(scale=0.01)
-    assert back.skeleton.names == skeleton.names and back.fps == 24.0
+    assert back.skeleton.names == skeleton.names
+    assert back.fps == 24.0
     np.testing.assert_allclose(back.positions(), motion.positions(), atol=TOL)
     with pytest.raises(ValueError, match="permutation of XYZ"):
         write_bvh(path, motion, rotation_order="XXY")
@@ -379,7 +388,8 @@ def test_malformed_file_names_the_line(tmp_path: Path, case: str) -> None:
     assert isinstance(info.value, DanceNetError)
     text = str(info.value)
     assert text.startswith(f"{path}:{line}: "), text
-    assert message in text and "\n" not in text
+    assert message in text
+    assert "\n" not in text
 
 
 def test_missing_and_empty_files(tmp_path: Path) -> None:
@@ -409,7 +419,8 @@ def test_cmu_file_round_trips(tmp_path: Path, path: Path) -> None:
     write_bvh_data(copy, data)
     again = read_bvh(copy)
     assert (again.names, again.parents, again.channels) == (data.names, data.parents, data.channels)
-    assert again.end_sites == data.end_sites and again.fps == data.fps
+    assert again.end_sites == data.end_sites
+    assert again.fps == data.fps
     np.testing.assert_allclose(again.world_positions(), pos, atol=TOL, rtol=0)
     np.testing.assert_allclose(again.end_site_positions(), ends, atol=TOL, rtol=0)
 
@@ -420,7 +431,8 @@ def test_cmu_file_round_trips(tmp_path: Path, path: Path) -> None:
     ours = tmp_path / "ours.bvh"
     write_bvh(ours, motion, rotation_order=order)
     mine = read_bvh(ours)
-    assert mine.names == data.names and mine.channels[1] == tuple(f"{a}rotation" for a in order)
+    assert mine.names == data.names
+    assert mine.channels[1] == tuple(f"{a}rotation" for a in order)
     np.testing.assert_allclose(mine.world_positions(), pos, atol=TOL, rtol=0)
 
 

@@ -55,12 +55,14 @@ def posed() -> tuple[Motion, list[Camera], list[np.ndarray], list[np.ndarray]]:
 
 def test_figure_is_where_fk_puts_it(posed) -> None:
     motion, cameras, frames, empty = posed
-    assert frames[0].shape == (H, W, 3) and frames[0].dtype == np.uint8
+    assert frames[0].shape == (H, W, 3)
+    assert frames[0].dtype == np.uint8
     pos = motion.positions()
     for f in (0, 1):
         for name in CHECKED:
             x, y = cameras[f].project(pos[f, JOINT_INDEX[name]]).astype(int)
-            assert 0 <= x < W and 0 <= y < H, name
+            assert 0 <= x < W, name
+            assert 0 <= y < H, name
             # the figure covers the joint: the picture there is not what the floor or sky would show
             assert _differs(frames[f][y, x], empty[f][y, x]) > 40, (f, name)
     assert tuple(frames[0][1, 1]) == BACKGROUND_RGB  # top-left corner: sky, far from the figure
@@ -72,7 +74,8 @@ def test_raised_arm_moves_the_pixels(posed) -> None:
     wrist = motion.positions()[:, JOINT_INDEX["left_wrist"]]
     x0, y0 = cameras[0].project(wrist[0]).astype(int)
     x1, y1 = cameras[1].project(wrist[1]).astype(int)
-    assert y1 < y0 - 20 and abs(x1 - x0) > 10  # up and in: projection agrees with the pose
+    assert y1 < y0 - 20
+    assert abs(x1 - x0) > 10  # up and in: projection agrees with the pose
     assert _differs(frames[1][y1, x1], empty[1][y1, x1]) > 40  # the arm is now up here...
     assert _differs(frames[0][y1, x1], empty[0][y1, x1]) <= 6  # ...where the T-pose left empty space
     assert _differs(frames[1][y0, x0], empty[1][y0, x0]) <= 6  # and the T-pose's wrist place is empty
@@ -137,7 +140,8 @@ def test_cli_render_video_frames_and_sheet(tmp_path: Path) -> None:
     assert main(args) == 0
     assert int(_probe(video)["video"]["nb_read_frames"]) == 10  # resampled to --fps
     pngs = sorted(stills.glob("frame_*.png"))
-    assert len(pngs) == 10 and Image.open(pngs[0]).size == (160, 96)
+    assert len(pngs) == 10
+    assert Image.open(pngs[0]).size == (160, 96)
     assert Image.open(sheet).size == (4 * 80, 3 * 48)  # 4x3 cells, each half the video size
 
 
@@ -160,7 +164,8 @@ def test_cli_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
                  ["render", str(not_motion)]):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
-        assert err.startswith("dancenet: error: ") and err.count("\n") == 1, err
+        assert err.startswith("dancenet: error: "), err
+        assert err.count("\n") == 1, err
     assert not Path(out).exists()
 
 

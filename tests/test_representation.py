@@ -26,7 +26,8 @@ def _synthetic(frames: int = 3000, fps: float = 25.0, seed: int = 0) -> Motion:
 def _round_trip_error(m: Motion) -> float:
     feats = encode(m)
     size = FeatureLayout.for_skeleton(m.skeleton).size
-    assert feats.dtype == np.float32 and feats.shape == (m.num_frames, size)
+    assert feats.dtype == np.float32
+    assert feats.shape == (m.num_frames, size)
     yaw, xz = start_pose(m)
     back = decode(feats, m.fps, m.skeleton, start_yaw=yaw, start_xz=xz)
     return float(np.abs(back.positions() - m.positions()).max())
@@ -65,7 +66,8 @@ def test_foot_contact_on_real_planted_feet(shared_data) -> None:
         height = p[:, 1] - floor
         planted = (speed < 0.1) & (height < 0.03)
         moving = (speed > 1.0) | (height > 0.15)
-        assert planted.sum() > 50 and moving.sum() > 50
+        assert planted.sum() > 50
+        assert moving.sum() > 50
         assert contacts[planted, side].mean() > 0.9
         assert contacts[moving, side].mean() < 0.1
 
@@ -78,7 +80,9 @@ def test_contacts_follow_toe_end_height_and_speed() -> None:
     from dancenet_core.representation import foot_contacts
 
     c = foot_contacts(toes, m.fps, floor=0.0)
-    assert c[:4, 0].all() and not c[6:, 0].any() and not c[:, 1].any()
+    assert c[:4, 0].all()
+    assert not c[6:, 0].any()
+    assert not c[:, 1].any()
 
 
 def test_normalizer_handles_constant_channels() -> None:
@@ -90,7 +94,8 @@ def test_normalizer_handles_constant_channels() -> None:
     z = norm.normalize(feats)
     assert np.isfinite(z).all()
     finger_channels = slice(layout.rotations.start + 3 * 24, layout.rotations.stop)
-    assert norm.constant[finger_channels].all() and not norm.constant[layout.root].any()
+    assert norm.constant[finger_channels].all()
+    assert not norm.constant[layout.root].any()
     np.testing.assert_allclose(norm.denormalize(z), feats, atol=1e-5)
     np.testing.assert_array_equal(z[:, layout.contacts], feats[:, layout.contacts])
 

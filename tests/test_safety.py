@@ -19,22 +19,26 @@ import numpy as np
 import pytest
 import soundfile as sf
 import torch
+from made_up import small_motion
 
+from dancenet_core import generate
 from dancenet_core.bvh import write_bvh
 from dancenet_core.checkpoint import load_weights
 from dancenet_core.cli import main as cli_main
+from dancenet_core.commands import analyze as analyze_command
 from dancenet_core.errors import DanceNetError
-from dancenet_core.footfix import WEIGHTS as FOOTFIX_WEIGHTS
-from dancenet_core.footfix import FootFixer
 from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-from dancenet_core.motion import Motion
+from dancenet_core.model.footfix import WEIGHTS as FOOTFIX_WEIGHTS
+from dancenet_core.model.footfix import FootFixer
 
 SHIPPED = sorted((Path(__file__).resolve().parents[1] / "dancenet_core" / "weights").glob("*.pt"))
 
 
 def one_line(e: BaseException) -> str:
     msg = str(e)
-    assert msg and "\n" not in msg and "Traceback" not in msg, msg
+    assert msg, msg
+    assert "\n" not in msg, msg
+    assert "Traceback" not in msg, msg
     return msg
 
 
@@ -102,7 +106,8 @@ def test_bundle_save_round_trip_is_plain_and_exact(tmp_path: Path) -> None:
     for k, v in shipped.model.state_dict().items():
         assert torch.equal(v, again.model.state_dict()[k])
     for k, v in shipped.start_frames.items():
-        assert again.start_frames[k].dtype == v.dtype and np.array_equal(again.start_frames[k], v)
+        assert again.start_frames[k].dtype == v.dtype
+        assert np.array_equal(again.start_frames[k], v)
     assert np.array_equal(again.normalizer.constant, shipped.normalizer.constant)
     assert np.array_equal(again.skeleton.offsets, shipped.skeleton.offsets)
     assert list(tmp_path.iterdir()) == [out]  # no temporary left behind
@@ -127,13 +132,6 @@ def _cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str]:
     return code, err
 
 
-def _small_motion(frames: int = 20) -> Motion:
-    rng = np.random.default_rng(0)
-    rot = 0.2 * rng.standard_normal((frames, 55, 3))
-    root = np.stack([np.zeros(frames), np.full(frames, 0.9), np.linspace(0, 1, frames)], -1)
-    return Motion(rot, root, 25.0)
-
-
 def _no_tmp_left(folder: Path) -> None:
     assert not [p.name for p in folder.iterdir() if ".tmp" in p.name]
 
@@ -153,7 +151,7 @@ def test_full_disk_leaves_the_old_file_and_one_line(tmp_path: Path, monkeypatch:
                                                     kind: str) -> None:
     target = tmp_path / f"song.{kind}"
     target.write_bytes(b"the previous good file")
-    motion = _small_motion()
+    motion = small_motion()
     if kind == "bvh":
         monkeypatch.setattr(np, "savetxt", _fail_half_way(np.savetxt))
         with pytest.raises(DanceNetError) as e:
@@ -169,14 +167,15 @@ def test_full_disk_leaves_the_old_file_and_one_line(tmp_path: Path, monkeypatch:
 
 def test_ctrl_c_while_writing_a_long_bvh_keeps_the_previous_file(tmp_path: Path) -> None:
     target = tmp_path / "song.bvh"
-    write_bvh(target, _small_motion())
+    write_bvh(target, small_motion())
     before = target.read_bytes()
-    code = (f"from tests.test_safety import _small_motion; from dancenet_core.bvh import write_bvh; "
-            f"write_bvh({str(target)!r}, _small_motion(60000))")
+    code = (f"import sys; sys.path.insert(0, 'tests'); from made_up import small_motion; "
+            f"from dancenet_core.bvh import write_bvh; write_bvh({str(target)!r}, small_motion(60000))")
     child = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
     while not [p for p in tmp_path.iterdir() if ".tmp" in p.name]:
-        assert child.poll() is None and time.monotonic() < deadline, "the child never started writing"
+        assert child.poll() is None, "the child never started writing"
+        assert time.monotonic() < deadline, "the child never started writing"
         time.sleep(0.02)
     time.sleep(0.2)  # well into the frames
     child.send_signal(signal.SIGINT)
@@ -190,11 +189,11 @@ def test_ctrl_c_while_writing_a_long_bvh_keeps_the_previous_file(tmp_path: Path)
 @pytest.fixture
 def no_analysis(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fail the test if a command gets as far as analysing the music."""
-    import dancenet_core.features as features
-
     def analyze(*_a: Any, **_k: Any) -> None:
         raise AssertionError("analysis started")
-    monkeypatch.setattr(features, "analyze_music", analyze)
+
+    monkeypatch.setattr(generate, "analyze_music", analyze)
+    monkeypatch.setattr(analyze_command, "analyze_music", analyze)
 
 
 def test_generate_refuses_to_replace_outputs_unless_asked(tmp_path: Path, capsys: pytest.CaptureFixture,
@@ -203,7 +202,10 @@ def test_generate_refuses_to_replace_outputs_unless_asked(tmp_path: Path, capsys
     out.mkdir()
     (out / "song.json").write_text("mine")
     code, err = _cli(["generate", str(song), "-o", str(out)], capsys)
-    assert code == 2 and "song.json already exists" in err and "--overwrite" in err and "\n" not in err
+    assert code == 2
+    assert "song.json already exists" in err
+    assert "--overwrite" in err
+    assert "\n" not in err
     assert (out / "song.json").read_text() == "mine"
     with pytest.raises(AssertionError, match="analysis started"):
         cli_main(["generate", str(song), "-o", str(out), "--overwrite"])
@@ -240,8 +242,11 @@ def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pyte
         argv = ["generate", str(tmp_path), "-o", str(out)]
     t = time.perf_counter()
     code, err = _cli(argv, capsys)
-    assert code == 2 and message in err, err
-    assert err.startswith("dancenet: error: ") and "\n" not in err and "Traceback" not in err
+    assert code == 2, err
+    assert message in err, err
+    assert err.startswith("dancenet: error: ")
+    assert "\n" not in err
+    assert "Traceback" not in err
     assert time.perf_counter() - t < 30
 
 
@@ -250,7 +255,7 @@ def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pyte
 @pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "nan"])
 def test_damaged_cache_entry_is_recomputed_with_a_notice(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                          damage: str) -> None:
-    from dancenet_core.features import MusicAnalysis, analyze_music
+    from dancenet_core.music.features import MusicAnalysis, analyze_music
 
     song, cache = _wav(tmp_path / "song.wav"), tmp_path / "cache"
     first = analyze_music(song, cache_dir=cache, workers=1)
@@ -266,13 +271,14 @@ def test_damaged_cache_entry_is_recomputed_with_a_notice(tmp_path: Path, capsys:
     capsys.readouterr()
     again = analyze_music(song, cache_dir=cache, workers=1)
     notice = capsys.readouterr().err.strip()
-    assert notice.startswith("dancenet: the cached analysis") and "\n" not in notice, notice
+    assert notice.startswith("dancenet: the cached analysis"), notice
+    assert "\n" not in notice, notice
     assert np.array_equal(again.features, first.features)
     assert np.array_equal(MusicAnalysis.load(entry).features, first.features)  # replaced by a good entry
 
 
 def _hammer(entry: str, n: int) -> None:
-    from dancenet_core.features import MusicAnalysis
+    from dancenet_core.music.features import MusicAnalysis
 
     rng = np.random.default_rng()
     for _ in range(n):
@@ -283,7 +289,7 @@ def _hammer(entry: str, n: int) -> None:
 def test_two_processes_writing_one_cache_entry_leave_it_whole(tmp_path: Path) -> None:
     import multiprocessing as mp
 
-    from dancenet_core.features import MusicAnalysis
+    from dancenet_core.music.features import MusicAnalysis
 
     entry = tmp_path / "entry.npz"
     _hammer(str(entry), 1)
@@ -295,7 +301,8 @@ def test_two_processes_writing_one_cache_entry_leave_it_whole(tmp_path: Path) ->
     while any(w.is_alive() for w in writers):
         assert MusicAnalysis.load(entry).features.shape == (2000, 15)
         reads += 1
-    assert all(w.exitcode == 0 for w in writers) and reads > 0
+    assert all(w.exitcode == 0 for w in writers)
+    assert reads > 0
     assert [p.name for p in tmp_path.iterdir()] == ["entry.npz"]
 
 
@@ -327,14 +334,16 @@ def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: sig
     deadline = time.monotonic() + 120
     workers: set[int] = set()
     while len(workers) < 2:
-        assert child.poll() is None and time.monotonic() < deadline, "no workers started"
+        assert child.poll() is None, "no workers started"
+        assert time.monotonic() < deadline, "no workers started"
         workers = _children(child.pid)
         time.sleep(0.05)
     time.sleep(0.5)
     child.send_signal(sig)
     code = child.wait(60)
     err = child.stderr.read() if child.stderr else ""
-    assert code != 0 and "Traceback" not in err, err
+    assert code != 0, err
+    assert "Traceback" not in err, err
     deadline = time.monotonic() + 10
     while any(_alive(w) for w in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -346,7 +355,7 @@ def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: sig
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_non_finite_audio_is_one_line_and_not_cached(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                       bad: float) -> None:
-    from dancenet_core.features import analyze_music
+    from dancenet_core.music.features import analyze_music
 
     rate = 22050
     y = 0.3 * np.sin(2 * np.pi * 220 * np.arange(5 * rate) / rate)
@@ -358,7 +367,9 @@ def test_non_finite_audio_is_one_line_and_not_cached(tmp_path: Path, capsys: pyt
     assert "not numbers (NaN or infinity)" in one_line(e.value)
     assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
     code, err = _cli(["generate", str(song), "-o", str(tmp_path / "out")], capsys)
-    assert code == 2 and "NaN or infinity" in err and "\n" not in err
+    assert code == 2
+    assert "NaN or infinity" in err
+    assert "\n" not in err
     assert not (tmp_path / "out" / "damaged.json").exists()
 
 
@@ -395,7 +406,9 @@ def test_bad_motion_files_given_to_render_are_one_line(tmp_path: Path, capsys: p
     else:
         path.write_text(_deep_bvh(5000))
     code, err = _cli(["render", str(path), "--sheet", str(tmp_path / "sheet.png")], capsys)
-    assert code == 2 and err.startswith("dancenet: error: ") and "\n" not in err, err
+    assert code == 2, err
+    assert err.startswith("dancenet: error: "), err
+    assert "\n" not in err, err
     assert not (tmp_path / "sheet.png").exists()
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dancenet_core.kinematics import fk_numpy, fk_torch
+from dancenet_core.kinematics import fk_numpy
+from dancenet_core.model.kinematics_torch import fk_torch
 from dancenet_core.skeleton import (
     DEFAULT_SKELETON,
     END_EFFECTORS,
@@ -18,7 +19,8 @@ from dancenet_core.skeleton import (
 
 
 def test_layout_is_smplx() -> None:
-    assert len(JOINT_NAMES) == 55 and len(PARENTS) == 55
+    assert len(JOINT_NAMES) == 55
+    assert len(PARENTS) == 55
     assert JOINT_NAMES[:3] == ("pelvis", "left_hip", "right_hip")
     assert JOINT_NAMES[22:25] == ("jaw", "left_eye_smplhf", "right_eye_smplhf")
     assert PARENTS[JOINT_INDEX["left_index1"]] == JOINT_INDEX["left_wrist"]
@@ -72,5 +74,6 @@ def test_torch_fk_matches_numpy_and_is_differentiable() -> None:
     np.testing.assert_allclose(r_t.detach().numpy(), r_np, atol=1e-10)
     np.testing.assert_allclose(e_t.detach().numpy(), e_np, atol=1e-10)
     e_t.sum().backward()
-    assert rot_t.grad is not None and torch.isfinite(rot_t.grad).all()
+    assert rot_t.grad is not None
+    assert torch.isfinite(rot_t.grad).all()
     assert rot_t.grad.abs().sum() > 0

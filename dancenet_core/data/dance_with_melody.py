@@ -29,7 +29,7 @@ STYLE_NAMES = {"C": "cha-cha", "R": "rumba", "T": "tango", "W": "waltz"}
 
 
 @dataclass(frozen=True)
-class Sequence:
+class Recording:
     """One row of the manifest: a dance and where it sits in its song."""
 
     seq: str
@@ -57,7 +57,7 @@ def dataset_dir(root: str | Path) -> Path:
     return d
 
 
-def read_manifest(root: str | Path) -> list[Sequence]:
+def read_manifest(root: str | Path) -> list[Recording]:
     """Every sequence of the set: the main folder's, then the extra folder's when it sits beside it."""
     d = dataset_dir(root)
     folders = [d] + [e for e in (d.parent / EXTRA_FOLDER,) if (e / "manifest.csv").is_file()]
@@ -66,7 +66,7 @@ def read_manifest(root: str | Path) -> list[Sequence]:
         with open(folder / "manifest.csv", newline="") as f:
             rows = list(csv.DictReader(f))
         seqs += [
-            Sequence(
+            Recording(
                 seq=r["seq"],
                 style=r["style"],
                 frames=int(r["frames"]),
@@ -83,7 +83,7 @@ def read_manifest(root: str | Path) -> list[Sequence]:
     return seqs
 
 
-def load_positions(seq: Sequence) -> np.ndarray:
+def load_positions(seq: Recording) -> np.ndarray:
     """Marker positions [T, 23, 3] in metres, right-handed Y-up (x negated from the stored mirror)."""
     z = np.load(seq.npz)
     pos = z["positions"].astype(np.float64)

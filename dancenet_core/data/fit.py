@@ -17,13 +17,13 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
-from ..kinematics import fk_numpy, fk_torch
+from ..kinematics import fk_numpy
+from ..model.kinematics_torch import fk_torch
 from ..motion import Motion
-from ..skeleton import DEFAULT_SKELETON, JOINT_INDEX, EndSite, Skeleton
+from ..skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, EndSite, Skeleton
 from .dance_with_melody import P
 
 J = JOINT_INDEX
-BODY_JOINTS = 22  # SMPL body joints 0..21; every parent precedes its child
 
 
 @dataclass(frozen=True)

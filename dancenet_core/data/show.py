@@ -8,10 +8,12 @@ import numpy as np
 
 from ..errors import DanceNetError
 from ..motion import Motion
-from ..retarget import mapped_ancestor
+from ..plotting import pyplot
 from ..skeleton import DEFAULT_SKELETON
+from .build import dataset_cache_dir, fitted_clip, fitted_motion
 from .cmu_dance import read_cmu_manifest
 from .dance_with_melody import P, load_positions, read_manifest
+from .retarget import mapped_ancestor
 
 # The source viewer's lines (utils/draw.py), with mid-points written as pairs.
 _SOURCE_LINES = [
@@ -25,8 +27,6 @@ _SOURCE_LINES = [
 
 def draw_fit(data_dir: Path, seq_id: str, frame: int | None, out: Path) -> None:
     """Draw a Dance with Melody sequence or a CMU clip (by its id, e.g. 60_01)."""
-    from .build import dataset_cache_dir, fitted_clip, fitted_motion
-
     cache = dataset_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
     clips = {c.clip: c for c in read_cmu_manifest(data_dir)}
@@ -58,11 +58,7 @@ def _plot(src: np.ndarray, lines: list[tuple[int, int]], centre_point: int, moti
           src_title: str, title: str, out: Path) -> None:
     """The source points [N, 3] (joined by `lines`) beside our one-frame `motion`, raised by `lift`
     (default: onto the source's lowest point)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fit = motion.positions()[0]
     ends = motion.end_effectors()[0]
     if lift is None:

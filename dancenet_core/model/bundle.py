@@ -12,12 +12,13 @@ import numpy as np
 import torch
 
 from ..checkpoint import load_weights, save_weights
+from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
 from ..representation import Normalizer
 from ..skeleton import Skeleton
 from .dancenet import DanceNet
+from .variants import model_from_config
 
-WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
 DEFAULT_BUNDLE = WEIGHTS_DIR / "dancenet.pt"
 
 
@@ -51,8 +52,6 @@ class DanceNetBundle:
 
     @classmethod
     def from_dict(cls, d: dict) -> DanceNetBundle:
-        from .variants import model_from_config
-
         model = model_from_config(d.get("kind", "dancenet"), d["config"])
         model.load_state_dict(d["state_dict"])
         model.eval()

@@ -9,6 +9,7 @@ frame with cached per-layer queues.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -198,12 +199,20 @@ class DanceNet(nn.Module):
         return dancenet_loss(self, out, target)
 
 
-def output_size(cfg) -> int:  # noqa: ANN001 (any config with mixtures, motion_dim, continuous_dim)
+class OutputSizes(Protocol):
+    """What the mixture head's layout depends on (DanceNet's config and the GMM baselines' have it)."""
+
+    mixtures: int
+    motion_dim: int
+    continuous_dim: int
+
+
+def output_size(cfg: OutputSizes) -> int:
     """Mixture logits, means and log sigmas of the continuous channels, then contact logits."""
     return cfg.mixtures * (1 + 2 * cfg.continuous_dim) + (cfg.motion_dim - cfg.continuous_dim)
 
 
-def split_outputs(out: torch.Tensor, cfg) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:  # noqa: ANN001
+def split_outputs(out: torch.Tensor, cfg: OutputSizes) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Raw outputs -> (mixture logits [.., K], means [.., K, D], log sigmas [.., K, D], contact logits)."""
     k, d = cfg.mixtures, cfg.continuous_dim
     logits = out[..., :k]

@@ -18,9 +18,9 @@ import numba
 import numpy as np
 import torch
 
+from ..progress import Progress
 from .dancenet import DanceNet
 
-Progress = Callable[[float], None]
 CHUNK = 250  # frames per compiled call, between which progress is reported and cancellation checked
 
 
@@ -61,7 +61,7 @@ class Sampling:
 
 
 @numba.njit(cache=True)
-def _generate(  # noqa: PLR0913 (a compiled kernel takes its arrays flat)
+def _generate(  # a compiled kernel takes its arrays flat
     frames, outputs, t0, t1, queues, dilations,
     enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
     w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b,

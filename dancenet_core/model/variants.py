@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 from torch import nn
 
+from ..music.features import MEL_BANDS, N_FEATURES
 from .baselines import KINDS, BaselineConfig, build_baseline
 from .dancenet import DanceNet, DanceNetConfig
+from .sampler import CachedSampler, Sampling, music_conditioning
 
 VARIANTS: dict[str, str] = {
     "dancenet": "DanceNet",
@@ -18,7 +20,6 @@ VARIANTS: dict[str, str] = {
     "temporal_conv": "Temporal Conv [14]",
     "lstm_autoencoder": "LSTM-autoencoder [46]",
 }
-MEL_BANDS = 80
 
 
 def music_features(variant: str) -> str:
@@ -32,7 +33,7 @@ def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list
     the input frame to the outputs (DanceNet variants only)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
-    music_dim = MEL_BANDS if music_features(variant) == "mel" else 15
+    music_dim = MEL_BANDS if music_features(variant) == "mel" else N_FEATURES
     if variant in KINDS:
         return build_baseline(BaselineConfig(kind=variant, motion_dim=motion_dim, continuous_dim=continuous_dim,
                                              styles=styles, music_dim=music_dim, music_window=window,
@@ -61,8 +62,6 @@ def sample_normalized(model: nn.Module, music: np.ndarray, style: int, first: np
     if model.cfg.loss == "mse":
         temperature = 0.0
     if isinstance(model, DanceNet):
-        from .sampler import CachedSampler, Sampling, music_conditioning
-
         cond = music_conditioning(model, music, style)
         return CachedSampler(model).run(first[None], cond, Sampling(temperature, rng))[0][0]
     return model.generate(music, style, first, temperature, rng)

@@ -1,0 +1,88 @@
+"""`dancenet analyze SONG`: tempo, style, beats and downbeats of a song, optionally as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import soundfile as sf
+from tqdm import tqdm
+
+from ..atomic import write_text
+from ..errors import DanceNetError
+from ..music.audio import load_audio
+from ..music.features import analyze_music
+from ..music.style import DEFAULT_WEIGHTS, StyleModel
+
+# Songs longer than this get a progress bar; shorter ones finish before a bar would be worth reading.
+PROGRESS_BAR_MIN_S = 60.0
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("song", help="audio file: wav, flac, ogg, mp3 or opus")
+    p.add_argument("--json", metavar="PATH", help="also write beats, downbeats and per-window styles as JSON")
+    p.add_argument("--style-model", metavar="PATH", help="style checkpoint (default: the shipped one)")
+    p.add_argument("--cache-dir", metavar="DIR",
+                   help="feature cache (default: features/ in $DANCENET_CACHE or ~/.cache/dancenet)")
+    p.add_argument("--no-cache", action="store_true", help="recompute the features even if cached")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    t0 = time.time()
+    song = Path(args.song)
+    duration = _duration_hint(song)
+    if duration is None:
+        load_audio(song)  # not readable as audio: raises the one-line error
+    model = StyleModel.load(args.style_model or DEFAULT_WEIGHTS)
+    bar = None
+    if duration is not None and duration >= PROGRESS_BAR_MIN_S:
+        bar = tqdm(total=100, desc="analysing", unit="%", leave=False, bar_format="{l_bar}{bar}| {elapsed}")
+    try:
+        analysis = analyze_music(
+            song,
+            cache_dir=args.cache_dir,
+            use_cache=not args.no_cache,
+            progress=(lambda f: bar.update(round(100 * f) - bar.n)) if bar else None,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    style = model.classify(analysis)
+    elapsed = time.time() - t0
+    probs = ", ".join(
+        f"{s} {p:.2f}" for s, p in sorted(zip(style.styles, style.probabilities, strict=True), key=lambda sp: -sp[1])
+    )
+    print(f"song:      {song.name} ({analysis.duration_s:.1f} s)")
+    print(f"tempo:     {analysis.tempo_bpm:.1f} BPM")
+    print(f"style:     {style.style} ({probs})")
+    print(f"beats:     {len(analysis.beat_times)}")
+    print(f"downbeats: {len(analysis.downbeat_times)}")
+    print(f"time:      {elapsed:.1f} s")
+    if args.json:
+        out = {
+            "song": str(song),
+            "duration_s": round(analysis.duration_s, 3),
+            "tempo_bpm": round(analysis.tempo_bpm, 2),
+            "style": style.to_dict(),
+            "beat_times": [round(float(t), 3) for t in analysis.beat_times],
+            "downbeat_times": [round(float(t), 3) for t in analysis.downbeat_times],
+            "features": {"shape": list(analysis.features.shape), "fps": analysis.fps},
+            "seconds": round(elapsed, 2),
+        }
+        try:
+            write_text(args.json, json.dumps(out, indent=1, allow_nan=False) + "\n")
+        except OSError as e:
+            raise DanceNetError(f"cannot write {args.json}: {e.strerror}; choose a writable path") from e
+    return 0
+
+
+def _duration_hint(path: Path) -> float | None:
+    """Duration from the file header, to decide on a progress bar before decoding; None if unreadable."""
+    try:
+        info = sf.info(str(path))
+    except (sf.LibsndfileError, RuntimeError, TypeError, OSError):
+        return None
+    return info.frames / info.samplerate if info.samplerate else None

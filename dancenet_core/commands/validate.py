@@ -1,0 +1,21 @@
+"""`dancenet validate`: DanceNet's sampling settings (or a run's learning curve) on the validation songs."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..evaluation import comparison
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = comparison.validate.__doc__
+    p.add_argument("weights", nargs="+", help="DanceNet weights files (bundles) to compare")
+    p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    p.add_argument("--out", type=Path, default=Path("out/validate"))
+    p.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
+    p.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")
+    p.add_argument("--takes", type=int, default=2)
+    p.add_argument("--curve", type=Path, default=None, metavar="RUN",
+                   help="instead: the learning curve of a training run folder (its snapshots and log)")
+    p.set_defaults(handler=comparison.validate)

@@ -1,0 +1,33 @@
+"""Where things live and how much to run at once, as the environment decides: the shipped weights, the one
+cache folder (`$DANCENET_CACHE`), the shared data folder (`$DANCENET_DATA`) and worker processes
+(`$DANCENET_WORKERS`). One home, so the command line, the add-on and training never disagree."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+# Shipped checkpoints, the song split and the model cards.
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+
+
+def cache_root() -> Path:
+    """`$DANCENET_CACHE` if set, else ~/.cache/dancenet; each cache is a folder inside it."""
+    env = os.environ.get("DANCENET_CACHE")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "dancenet"
+
+
+def default_data_dir() -> Path:
+    """`$DANCENET_DATA`, else the shared data folder next to the repository."""
+    env = os.environ.get("DANCENET_DATA")
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def default_workers() -> int:
+    """$DANCENET_WORKERS, else 2 (the networks are single-threaded); 1 inside Blender, whose process (GUI
+    threads, its own allocators) is not worth the risk of forking."""
+    env = os.environ.get("DANCENET_WORKERS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    return 1 if "bpy" in sys.modules else min(2, os.cpu_count() or 1)

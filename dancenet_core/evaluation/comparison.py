@@ -1,0 +1,396 @@
+"""`dancenet evaluate`: the paper's comparison (Tables 3 and 4) on the test split, from this command's own runs.
+
+1. Train every model of `model/variants.py` on the training split with the same windows and the same
+   number of steps (each in its own process, `--jobs` at a time; a finished run with the same settings is
+   reused, so a second call only measures).
+2. Each model dances to the music spans of the test-split sequences (`--takes` seeds each, from the real
+   dance's first frame, in its style), as do the shipped DanceNet weights, with and without the foot model.
+3. Every dance is cut into 10-s segments. Realism: FID of their kinetic and geometric features (AIST++) and
+   of the motion-style classifier's features (the paper's FID) against the real dances of the training
+   split; diversity: mean distance between segments in the same spaces; rhythm: Beat Align Score and the
+   paper's hit rate; feet: PFC and the sliding ratio; style consistency: the classifier's accuracy on the
+   requested style. The real test dances are measured the same way (the first row).
+
+Writes `comparison.md`, `comparison.json`, `figure_3b.png` (the music's onset envelope over the dance's
+kinematic velocity, as the paper's Figure 3b) and `contact_sheet.png` (the same 20 s of a test waltz, the real
+dance above the shipped model's with the foot model below) into `--out`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..atomic import write_text
+from ..checkpoint import load_weights
+from ..data.build import with_mel_music
+from ..environment import default_data_dir
+from ..errors import DanceNetError
+from ..generate import DEFAULT_TEMPERATURE
+from ..model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from ..model.variants import VARIANTS, music_features
+from ..motion import Motion
+from ..plotting import pyplot
+from ..render import contact_sheet
+from ..representation import decode
+from ..skeleton import BODY_JOINTS
+from .dance_features import geometric_features, kinetic_features, smpl24_positions
+from .metrics import (
+    BAS_SMOOTH_S,
+    body_relative_segments,
+    diversity,
+    fid,
+    kinematic_velocity,
+    motion_beats,
+    nearest_segment_distance,
+    physical_foot_contact,
+)
+from .motion_style import MotionStyleModel
+from .test_split import dance_metrics, generate_for_pair, split_with_beats
+
+SEGMENT_S = 10.0
+COLUMNS: dict[str, str] = {
+    "fid_k": "FID_k", "fid_g": "FID_g", "fid_style": "FID (style net)", "div_k": "Div_k", "div_g": "Div_g",
+    "div_style": "Div (style net)", "beat_align_score": "BAS", "rhythm_hit_rate": "Rhythm hit",
+    "pfc": "PFC", "foot_slide_ratio": "Foot slide", "jitter_m_s2": "Jitter (m/s²)",
+    "longest_freeze_s": "Longest freeze (s)", "style_consistency": "Style consistency",
+    "root_extent_m": "Root extent (m)", "joint_speed_m_s": "Joint speed (m/s)",
+    "replay_m": "To nearest training 5 s (m)",
+}  # fmt: skip
+LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio", "longest_freeze_s"}
+
+
+@dataclass
+class DanceSet:
+    """One row of the table: dances with the style asked for and the beats of the music each was danced to."""
+
+    name: str
+    label: str
+    dances: list[Motion] = field(default_factory=list)
+    styles: list[str] = field(default_factory=list)
+    beats_s: list[np.ndarray] = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+
+
+def segments(positions: np.ndarray, fps: float, seconds: float = SEGMENT_S) -> list[np.ndarray]:
+    """Non-overlapping segments of `seconds` (a shorter tail is dropped)."""
+    n = int(round(seconds * fps))
+    return [positions[s : s + n] for s in range(0, len(positions) - n + 1, n)]
+
+
+def segment_features(dances: list[np.ndarray], styles: list[str], fps: float, style_net: MotionStyleModel) -> dict:
+    """Per-segment kinetic, geometric and style-net features, and whether the net names the segment's style."""
+
+    kin, geo, emb, hit = [], [], [], []
+    for pos, style in zip(dances, styles, strict=True):
+        for seg in segments(pos, fps):
+            p24 = smpl24_positions(seg)
+            kin.append(kinetic_features(p24, fps))
+            geo.append(geometric_features(p24, fps))
+            e, probs = style_net.describe(seg, fps)
+            emb.append(e)
+            hit.append(style_net.styles[int(np.argmax(probs))] == style)
+    return {"k": np.stack(kin), "g": np.stack(geo), "style": np.stack(emb), "hit": np.array(hit)}
+
+
+def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: MotionStyleModel) -> dict[str, dict]:
+    """Every column of the table for every row; FIDs and diversities in the reference set's normalisation;
+    `reference["library"]` (body-relative 5-s segments of the training dances) gives the replay column."""
+
+    table = {}
+    for row in rows:
+        positions = [m.positions() for m in row.dances]
+        feats = segment_features(positions, row.styles, fps, style_net)
+        per_dance = [dance_metrics(m, b) | {"pfc": physical_foot_contact(p, fps)}
+                     for m, p, b in zip(row.dances, positions, row.beats_s, strict=True)]
+        r = {k: float(np.mean([d[k] for d in per_dance])) for k in per_dance[0]}
+        for key in ("k", "g", "style"):
+            # A feature constant over the reference (some geometric relations never hold in ballroom) has
+            # std 0 and would blow Bailando's normalisation up to ~1e20: such features are left out.
+            keep = reference[key].std(axis=0) > 1e-6
+            r[f"fid_{key}"] = fid(reference[key][:, keep], feats[key][:, keep])
+            r[f"div_{key}"] = diversity(feats[key][:, keep], reference=reference[key][:, keep])
+        r["style_consistency"] = float(feats["hit"].mean())
+        segs = np.concatenate([body_relative_segments(p[:, :BODY_JOINTS], fps, hop_s=2.0) for p in positions])
+        r["replay_m"] = float(np.median(nearest_segment_distance(segs, reference["library"])))
+        r["segments"] = int(len(feats["hit"]))
+        table[row.name] = r | {"label": row.label, **row.info}
+    return table
+
+
+def reference_features(train_dances: list[np.ndarray], fps: float, style_net: MotionStyleModel) -> dict:
+    """What every row is measured against: the training dances' segment features and their 5-s library."""
+
+    feats = segment_features(train_dances, ["?"] * len(train_dances), fps, style_net)
+    feats["library"] = np.concatenate([body_relative_segments(p[:, :BODY_JOINTS], fps, hop_s=0.4)
+                                       for p in train_dances])
+    return feats
+
+
+# ------------------------------------------------------------------------------------------ training
+
+
+def run_dir(runs: Path, variant: str) -> Path:
+    return runs / variant
+
+
+def trained(runs: Path, variant: str, steps: int, seed: int) -> bool:
+    """A finished run of `variant` with these settings exists (so it is measured, not retrained)."""
+    path = run_dir(runs, variant) / "dancenet.pt"
+    if not path.is_file():
+        return False
+
+    info = load_weights(path, "DanceNet weights", "train it again")["info"]
+    return info.get("steps") == steps and info["settings"]["seed"] == seed and info.get("variant") == variant
+
+
+def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs: int, data: Path | None) -> None:
+    """Train the missing runs, `jobs` processes at a time (one thread each), logs next to the runs."""
+    todo = [v for v in variants if not trained(runs, v, steps, seed)]
+    for v in variants:
+        if v not in todo:
+            print(f"  {v}: trained run found in {run_dir(runs, v)}, reused")
+    env = os.environ | {"OMP_NUM_THREADS": "1"}
+    running: list[tuple[str, subprocess.Popen]] = []
+    while todo or running:
+        while todo and len(running) < jobs:
+            v = todo.pop(0)
+            out = run_dir(runs, v)
+            out.mkdir(parents=True, exist_ok=True)
+            cmd = [sys.executable, "-m", "dancenet_core.cli", "train", "dancenet", "--variant", v,
+                   "--steps", str(steps), "--minutes", "1e9", "--seed", str(seed), "--out", str(out), "--resume"]
+            if data:
+                cmd += ["--data", str(data)]
+            print(f"  {v}: training {steps} steps -> {out} (log {out}.log)")
+            running.append((v, subprocess.Popen(cmd, env=env, stdout=open(f"{out}.log", "a"),  # noqa: SIM115
+                                                stderr=subprocess.STDOUT)))
+        time.sleep(5)
+        for v, proc in list(running):
+            if proc.poll() is not None:
+                running.remove((v, proc))
+                if proc.returncode:
+                    raise DanceNetError(f"training {v} failed (exit {proc.returncode}); see {run_dir(runs, v)}.log")
+                print(f"  {v}: trained")
+
+
+# ------------------------------------------------------------------------------------------ dancing
+
+
+def dance_row(name: str, label: str, bundle: DanceNetBundle, test_pairs: list, beats: dict, takes: int,
+              temperature: float, footfix: bool = False, smoothing: float | None = None) -> DanceSet:
+    """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k)."""
+    row = DanceSet(name, label, info={"steps": bundle.info.get("steps"),
+                                      "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
+    for pair in test_pairs:
+        for take in range(takes):
+            row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing)[0])
+            row.styles.append(pair.style)
+            row.beats_s.append(beats[pair.seq])
+    return row
+
+
+def figure_3b(path: Path, music: np.ndarray, beats_s: np.ndarray, real: np.ndarray, generated: np.ndarray,
+              fps: float, title: str, seconds: float = 20.0) -> None:
+    """The music's onset envelope and beats over the kinematic velocity of the real and the generated dance."""
+    plt = pyplot()
+    n = min(int(seconds * fps), len(real), len(generated))
+    t = np.arange(n) / fps
+    fig, axes = plt.subplots(2, 1, figsize=(10, 4.5), sharex=True)
+    for ax, pos, name in ((axes[0], real, "real dance"), (axes[1], generated, "DanceNet")):
+        v = gaussian_filter1d(kinematic_velocity(pos[:n, :BODY_JOINTS]) * fps, BAS_SMOOTH_S * fps)
+        onset = music[:n, 14]
+        ax.plot(t, onset / max(onset.max(), 1e-9), color="tab:orange", lw=1, label="music onset strength")
+        ax.plot(t, v / max(v.max(), 1e-9), color="tab:blue", lw=1.5, label=f"{name}: kinematic velocity")
+        for b in motion_beats(pos[:n, :BODY_JOINTS], fps):
+            ax.axvline(b / fps, color="tab:blue", alpha=0.25, lw=0.8)
+        beats = beats_s[(beats_s >= 0) & (beats_s < n / fps)]
+        ax.plot(beats, np.full(len(beats), 1.05), "v", color="tab:orange", ms=4, label="music beats")
+        ax.set_ylabel("normalised")
+        ax.legend(loc="upper right", fontsize=8)
+    axes[0].set_title(title)
+    axes[1].set_xlabel("seconds (vertical lines: dance beats = velocity minima; triangles: music beats)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def markdown(table: dict[str, dict], seconds: float, steps: int, takes: int, segments_ref: int) -> str:
+    lines = [
+        "| model | " + " | ".join(COLUMNS.values()) + " | steps | train min |",
+        "|---|" + "---|" * (len(COLUMNS) + 2),
+    ]
+    for r in table.values():
+        cells = [f"{r[k]:.3f}" if abs(r[k]) < 10 else f"{r[k]:.1f}" for k in COLUMNS]
+        lines.append(f"| {r['label']} | " + " | ".join(cells)
+                     + f" | {r.get('steps') or '-'} | {r.get('train_minutes') or '-'} |")
+    lines += [
+        "",
+        f"Lower is better for {', '.join(COLUMNS[k] for k in sorted(LOWER_IS_BETTER))}; higher for the rest "
+        "(Jitter: closest to the real dances). FIDs and diversities are computed on 10-s segments against the "
+        f"{segments_ref} segments of the training split's real dances; {takes} take(s) per test sequence; "
+        f"every compared model trained {steps} steps on the same windows. Produced by `dancenet evaluate` in "
+        f"{seconds / 60:.1f} minutes.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def compare(args: argparse.Namespace) -> int:
+    """`dancenet evaluate` (this module's docstring): train what is missing, dance, measure, write the table."""
+    t0 = time.perf_counter()
+    data = args.data or default_data_dir()
+    if not data.is_dir():
+        raise DanceNetError(f"no dataset at {data}; pass --data DIR (the shared data folder)")
+    variants = list(VARIANTS) if args.variants is None else args.variants
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown:
+        raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
+    temperature = DEFAULT_TEMPERATURE if args.temperature is None else args.temperature
+    if variants:
+        print(f"training {len(variants)} models ({args.steps} steps each, {args.jobs} at a time)")
+        train_variants(variants, args.runs, args.steps, args.seed, args.jobs, args.data)
+
+    print("dancing to the test songs and measuring")
+    split, pairs, beats = split_with_beats(data)
+    style_net = MotionStyleModel.load()
+    test_pairs = [pairs[s] for s in split["test"] if pairs[s].style in style_net.styles]
+    fps = 25.0
+    shipped = DanceNetBundle.load(DEFAULT_BUNDLE)
+    real = DanceSet("real", "Real dances (test split)")
+    real.dances = [decode(p.motion, fps, shipped.skeleton) for p in test_pairs]
+    real.styles = [p.style for p in test_pairs]
+    real.beats_s = [beats[p.seq] for p in test_pairs]
+    train_dances = [decode(p.motion, fps, shipped.skeleton).positions()
+                    for p in pairs.values() if p.seq in set(split["train"]) and p.style in style_net.styles]
+    ref_feats = reference_features(train_dances, fps, style_net)
+
+    rows = [real]
+    mel_pairs = None
+    for v in variants:
+        bundle = DanceNetBundle.load(run_dir(args.runs, v) / "dancenet.pt")
+        tp = test_pairs
+        if music_features(v) == "mel":
+            mel_pairs = mel_pairs or {p.seq: p for p in with_mel_music(test_pairs, data)}
+            tp = [mel_pairs[p.seq] for p in test_pairs]
+        rows.append(dance_row(v, VARIANTS[v], bundle, tp, beats, args.takes, temperature))
+        print(f"  {v}: {len(rows[-1].dances)} dances")
+    rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
+                          args.takes, temperature))
+    rows.append(dance_row("dancenet_shipped_footfix", "DanceNet, shipped weights + foot model", shipped,
+                          test_pairs, beats, args.takes, temperature, footfix=True))
+    table = measure(rows, ref_feats, fps, style_net)
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    seconds = time.perf_counter() - t0
+    md = markdown(table, seconds, args.steps, args.takes, len(ref_feats["hit"]))
+    write_text(args.out / "comparison.md", md)
+    write_text(args.out / "comparison.json", json.dumps(
+        {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,
+         "seed": args.seed, "test_sequences": [p.seq for p in test_pairs], "reference_segments":
+         len(ref_feats["hit"]), "rows": table}, indent=1) + "\n")
+    # Figure 3b and the contact sheet on the first test waltz (else the first test sequence).
+    i = next((i for i, p in enumerate(test_pairs) if p.style == "waltz"), 0)
+    gen_row = next(r for r in rows if r.name == "dancenet_shipped")
+    figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.beats_s[i], real.dances[i].positions(),
+              gen_row.dances[i * args.takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
+    foot_row = next(r for r in rows if r.name == "dancenet_shipped_footfix")
+    first_20s = slice(0, int(20 * fps))
+    contact_sheet([(f"real {test_pairs[i].seq}", real.dances[i][first_20s]),
+                   ("DanceNet", foot_row.dances[i * args.takes][first_20s])],
+                  args.out / "contact_sheet.png", cols=6, rows=2, width=240, height=200)
+    print(md)
+    print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png, contact_sheet.png "
+          f"({seconds / 60:.1f} min)")
+    return 0
+
+
+def validate(args: argparse.Namespace) -> int:
+    """`dancenet validate`: DanceNet's sampling settings scored on the split's validation songs (training songs
+    that `train --validation` leaves out), never on the test songs: every weights file x temperature x output
+    smoothing dances to them (foot model on, as shipped) and is measured as `evaluate` measures, against the
+    real validation dances and the dances the models trained on."""
+    t0 = time.perf_counter()
+    data = args.data or default_data_dir()
+    split, pairs, beats = split_with_beats(data, part="validation")
+    if not split.get("validation"):
+        raise DanceNetError("the song split names no validation songs (weights/song_split.json)")
+    style_net = MotionStyleModel.load()
+    val = [pairs[s] for s in split["validation"]]
+    first = DanceNetBundle.load(args.weights[0])
+    fps = first.model.cfg.fps
+    real = DanceSet("real", "Real dances (validation songs)", [decode(p.motion, fps, first.skeleton) for p in val],
+                    [p.style for p in val], [beats[p.seq] for p in val])
+    trained_on = set(split["train"]) - set(split["validation"])
+    ref = reference_features([decode(p.motion, fps, first.skeleton).positions()
+                              for p in pairs.values() if p.seq in trained_on], fps, style_net)
+    rows = [real]
+    if args.curve:
+        return learning_curve(args.curve, val, beats, ref, style_net, real, args)
+    for path in args.weights:
+        bundle = DanceNetBundle.load(path)
+        k = bundle.model.cfg.mixtures
+        for temperature in args.temperatures:
+            for smoothing in args.smoothing:
+                name = f"{path} T={temperature} smooth={smoothing}"
+                rows.append(dance_row(name, f"{Path(path).parent.name or path} (K={k}), T {temperature}, "
+                                      f"smoothing {smoothing}", bundle, val, beats, args.takes, temperature,
+                                      footfix=True, smoothing=smoothing))
+                print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
+    table = measure(rows, ref, fps, style_net)
+    seconds = time.perf_counter() - t0
+    md = markdown(table, seconds, 0, args.takes, len(ref["hit"])).replace(
+        "every compared model trained 0 steps on the same windows. Produced by `dancenet evaluate`",
+        f"validation songs {', '.join(p.seq for p in val)}. Produced by `dancenet validate`")
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_text(args.out / "validation.md", md)
+    write_text(args.out / "validation.json", json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
+    print(md)
+    return 0
+
+
+def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net: MotionStyleModel, real: DanceSet,
+                   args: argparse.Namespace) -> int:
+    """Validation loss (from the run's log) and FID_k on the validation songs (one take each, at the first
+    temperature asked for, foot model on) of every snapshot a training run kept, against training time."""
+    plt = pyplot()
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    val_loss = {r["step"]: r["val_loss"] for r in log if "val_loss" in r}
+    points = []
+    for path in sorted((run / "snapshots").glob("step*.pt")) + [run / "dancenet.pt"]:
+        if not path.is_file():
+            continue
+        bundle = DanceNetBundle.load(path)
+        step = bundle.info["steps"]
+        row = dance_row(path.stem, path.stem, bundle, val, beats, 1, args.temperatures[0], footfix=True)
+        r = measure([row], ref, bundle.model.cfg.fps, style_net)[path.stem]
+        near = [s for s in val_loss if s <= step]
+        points.append({"step": step, "minutes": round(bundle.info["train_seconds"] / 60, 1),
+                       "val_loss": val_loss[max(near)] if near else None, "fid_k": r["fid_k"],
+                       "joint_speed_m_s": r["joint_speed_m_s"], "root_extent_m": r["root_extent_m"]})
+        print(f"  {path.name}: {points[-1]}", flush=True)
+    real_row = measure([real], ref, real.dances[0].fps, style_net)["real"]
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_text(args.out / "learning_curve.json", json.dumps(
+        {"run": str(run), "temperature": args.temperatures[0], "real_fid_k": real_row["fid_k"], "points": points},
+        indent=1) + "\n")
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
+    minutes = [p["minutes"] for p in points]
+    ax[0].plot(minutes, [p["val_loss"] for p in points], "o-")
+    ax[0].set(xlabel="training minutes (this run)", ylabel="validation loss", title="held-out loss")
+    ax[1].plot(minutes, [p["fid_k"] for p in points], "o-", label="generated")
+    ax[1].axhline(real_row["fid_k"], color="gray", ls="--", label="real validation dances")
+    ax[1].set(xlabel="training minutes (this run)", ylabel="FID_k", title="FID_k on the validation songs")
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(args.out / "learning_curve.png", dpi=100)
+    plt.close(fig)
+    print(f"wrote {args.out / 'learning_curve.json'} and learning_curve.png")
+    return 0

@@ -1,0 +1,395 @@
+"""The model cards (Markdown beside the shipped weights), written from what the weights store and from
+measurements, so a card can be rewritten without retraining: the style classifier's, the motion style
+classifier's and DanceNet's (`dancenet card ...`)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..atomic import write_text
+from ..data.dance_with_melody import Recording, read_manifest
+from ..data.split import SPLIT_FILE, validation_songs
+from ..errors import DanceNetError
+from ..evaluation.metrics import balanced_accuracy
+from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
+from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
+from ..model.bundle import DanceNetBundle
+from ..music.features import FEATURE_VERSION
+from ..music.style import BASELINE_WEIGHTS, BUMP_SIGMA_FRAMES, DEFAULT_WEIGHTS, WINDOW_S, StyleModel
+from ..music.style import HOP_S as STYLE_HOP_S
+from .motion_style import AUG_TEMPO as MOTION_AUG_TEMPO
+from .motion_style import Dance, load_dances
+from .style import AUG_CHROMA_DROP, AUG_GAIN, AUG_NOISE, VALIDATION, VALIDATION_WITH_TANGO
+from .style import AUG_TEMPO as STYLE_AUG_TEMPO
+
+
+def write_style_card(data_dir: str | Path, out_dir: str | Path, split_path: str | Path | None = None) -> Path:
+    """STYLE_MODEL_CARD.md in out_dir, from the two checkpoints' training metadata, the split and the
+    manifest (so the card can be rewritten without retraining)."""
+    out_dir = Path(out_dir)
+    rows = read_manifest(Path(data_dir))
+    split = json.loads(Path(split_path or out_dir / SPLIT_FILE.name).read_text())
+    trained = {}
+    for arch, path in (("conv", DEFAULT_WEIGHTS), ("baseline", BASELINE_WEIGHTS)):
+        model = StyleModel.load(out_dir / path.name)
+        if "metrics" not in model.meta.get("training", {}):
+            raise DanceNetError(f"{out_dir / path.name} has no training metrics; retrain it with this version")
+        trained[arch] = model
+    card = out_dir / "STYLE_MODEL_CARD.md"
+    write_text(card, style_card(trained["conv"], trained["baseline"], split, rows))
+    return card
+
+
+def _majority(m: list[list[int]]) -> float:
+    """Accuracy of always answering the style with most test items (rows of confusion matrix m)."""
+    return max(sum(r) for r in m) / max(1, sum(sum(r) for r in m))
+
+
+def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequence[Recording]) -> str:
+    """Markdown summary of data, split, settings and held-out results of both models, like Table 2."""
+    styles = conv.styles
+    settings = conv.meta["training"]
+    c, b = conv.meta["training"]["metrics"], baseline.meta["training"]["metrics"]
+    style_of = {r.seq: r.style for r in rows}
+    seconds = {r.seq: r.song_s for r in rows}
+
+    def count(seqs: Sequence[str], st: str) -> str:
+        chosen = [s for s in seqs if style_of[s] == st]
+        return f"{len(chosen)} ({sum(seconds[s] for s in chosen) / 60:.1f} min)"
+
+    def confusion(m: list[list[int]]) -> list[str]:
+        lines = ["| truth \\ predicted | " + " | ".join(styles) + " |", "|---" * (len(styles) + 1) + "|"]
+        lines += [f"| {st} | " + " | ".join(str(v) for v in row) + " |" for st, row in zip(styles, m, strict=True)]
+        return lines
+
+    per_style = {st: [s for s in split["train"] if style_of[s] == st] for st in styles}
+    common = max(styles, key=lambda st: len(per_style[st]))
+    counts = sorted(len(v) for st, v in per_style.items() if st != common) or [0]
+    few = str(counts[0]) if counts[0] == counts[-1] else f"{counts[0]}-{counts[-1]}"
+
+    def minority(m: dict) -> str:
+        rest = {s: p for s, p in m["predictions"].items() if p["truth"] != common}
+        return f"{sum(p['predicted'] == p['truth'] for p in rest.values())} of {len(rest)} right"
+
+    out = [
+        "# Style classifier model card",
+        "",
+        "Musical style classifier of DanceNet (Zhuang et al. 2020, section 4.2), trained by "
+        "`dancenet train style`. Files: `style_classifier.pt` (temporal conv + Bi-LSTM + FC), "
+        "`style_baseline.pt` (FC + Bi-LSTM + FC, the paper's baseline), `song_split.json`.",
+        "",
+        "## Data",
+        "",
+        "Dance with Melody (Tang et al. 2018) songs, the whole audio of each (not only the danced span); "
+        "research use only, no licence. Input: 15 channels at 10 fps in "
+        f"{WINDOW_S:g}-second windows: the music features' deep chroma (12) and onset (1) (feature version "
+        f"`{FEATURE_VERSION}`), and in place of their beat and downbeat activations a bump of height 1 (Gaussian, "
+        f"sigma {BUMP_SIGMA_FRAMES:g} frame) at each beat and downbeat tracked by madmom's DBN (3 or 4 beats a "
+        "bar); see below for why. No two sequences share a recording (checked by waveform cross-correlation).",
+        "",
+        "| style | train songs | test songs |",
+        "|---|---|---|",
+        *[f"| {st} | {count(split['train'], st)} | {count(split['test'], st)} |" for st in styles],
+        "",
+        f"Split by song, stratified by style, seed {split['seed']}: "
+        f"round({split['test_fraction']} x n) songs of each style held out (at least one). Excluded:",
+        "",
+        *[f"- {s} ({style_of[s]}): {why}" for s, why in split["excluded"].items()],
+        "",
+        "## Training",
+        "",
+        f"Adam, learning rate {settings['lr']:g} divided by 10 at 60% and 83% of {settings['steps']} steps "
+        f"(the supplement's schedule shape), batch {settings['batch']} windows, seed {settings['seed']}, "
+        "cross-entropy; the last step is shipped. Each window: style drawn uniformly (waltz has most songs), "
+        f"then a song and a random offset; played up to {100 * STYLE_AUG_TEMPO:g}% faster or slower (chroma and "
+        "onset resampled in time, the bumps redrawn at the moved beat times: beats per second change, beats "
+        "per bar do not), transposed by a random number of semitones (chroma rolled), the onset channel times "
+        f"a gain in [{1 - AUG_GAIN:g}, {1 + AUG_GAIN:g}], plus Gaussian noise (sigma {AUG_NOISE:g})"
+        + (f"; chroma blanked in {100 * AUG_CHROMA_DROP:g}% of windows. " if AUG_CHROMA_DROP else ". ")
+        + f"Both models: Bi-LSTM of {conv.config['hidden']} units each way, dropout {conv.config['dropout']:g}, "
+        "mean over time, then FC; trained by the same code with the same settings.",
+        "",
+        "These settings were chosen with `train --validate`, which holds out training songs by song ("
+        + ", ".join(validation_songs(split, rows))
+        + ") and never loads the test songs; the shipped models were then trained on all training songs.",
+        "",
+        "## What differs from the paper, and why",
+        "",
+        "- Architecture as in section 4.2 (three temporal conv layers, kernel 2, channels 1-16-24-32, then a "
+        "Bi-LSTM and a fully connected layer; the baseline puts a per-frame fully connected layer in place of "
+        "the convolutions), 30-second windows, cross-entropy.",
+        "- Input: the paper feeds its music features as they are. Here the beat and downbeat activation "
+        "channels are replaced by bumps at the DBN-tracked beats and downbeats. Sampled at 10 fps, madmom's "
+        "100-fps activations miss many of their peaks (a training song's highest sampled beat value ranges "
+        "0.24-0.93), so the metre and tempo that tell these ballroom styles apart (waltz 3 beats a bar at "
+        "83-88 bpm; cha-cha 115-125 bpm; rumba mostly 88-95 bpm) came through blurred; the tracked beats "
+        "carry them intact. On the validation songs, with the same settings, the balanced accuracy of ours by "
+        f"window (by song) rose from {VALIDATION['activations']} to {VALIDATION['bumps']}; the baseline's with "
+        f"bumps is {VALIDATION['baseline']}. DanceNet's own music input is unchanged.",
+        f"- Tango (added with the extra data folder): with the same settings the balanced accuracy on the "
+        f"validation songs is {VALIDATION_WITH_TANGO['200']} by window (by song) at 200 steps and "
+        f"{VALIDATION_WITH_TANGO['400']} at 400: tango's songs (about 120-130 bpm, four beats a bar) are learnt, "
+        "and cha-cha's, in the same tempo range, are taken for tango (see the confusion below). The style can "
+        "always be chosen by hand (`--style`, the panel).",
+        f"- Styles: the dance styles of the training data ({len(styles)} here) instead of the paper's two music "
+        f"styles, and {sum(seconds[q] for q in split['train']) / 3600:.1f} hours of music instead of 35.7: hence "
+        "the augmentation, the small Bi-LSTM "
+        f"({conv.config['hidden']} units), dropout and the short schedule, all chosen on validation songs.",
+        "",
+        "## Held-out results",
+        "",
+        f"Windows every {STYLE_HOP_S:g} s over each test song ({c['windows']} windows, {c['songs']} songs); "
+        "a song's style is the mean of its windows' probabilities.",
+        "",
+        "Balanced accuracy is the mean of the per-style recalls: the fairer number with this many waltzes, "
+        f"since always answering the most common style scores {100 / len(styles):.1f}% on it.",
+        "",
+        "| method | window accuracy | balanced, by window | song accuracy | balanced, by song "
+        "| train window accuracy | training time |",
+        "|---|---|---|---|---|---|---|",
+        f"| Always the most common style | {100 * _majority(c['confusion_window']):.1f}% "
+        f"| {100 / len(styles):.1f}% | {100 * _majority(c['confusion_song']):.1f}% | {100 / len(styles):.1f}% "
+        "| - | - |",
+        *[
+            f"| {name} | {100 * m['window_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_window']):.1f}% "
+            f"| {100 * m['song_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_song']):.1f}% "
+            f"| {100 * m['train']['window_accuracy']:.1f}% | {m['train_seconds']} s |"
+            for name, m in (("Baseline (FC + Bi-LSTM)", b), ("Ours (Temporal Conv + Bi-LSTM)", c))
+        ],
+        "",
+        "The paper's Table 2 (its own 35.7 h of music, two styles, accuracy): baseline 88.0%, ours 92.1%. With "
+        f"{len(split['test'])} test songs here, one song is {100 / max(1, len(split['test'])):.1f} points "
+        "of song accuracy: the numbers are indicative only.",
+        "",
+        "### Confusion by window, ours",
+        "",
+        *confusion(c["confusion_window"]),
+        "",
+        "### Confusion by window, baseline",
+        "",
+        *confusion(b["confusion_window"]),
+        "",
+        "### By song",
+        "",
+        "| song | truth | ours | baseline |",
+        "|---|---|---|---|",
+        *[
+            f"| {s} | {p['truth']} | {p['predicted']} ({p['p_truth']:.2f}) "
+            f"| {b['predictions'][s]['predicted']} ({b['predictions'][s]['p_truth']:.2f}) |"
+            for s, p in c["predictions"].items()
+        ],
+        "",
+        "(In brackets: the probability given to the true style.)",
+        "",
+        "## Limits",
+        "",
+        f"Held-out songs of the styles other than {common}: ours gets {minority(c)}, the baseline "
+        f"{minority(b)}. Ballroom styles differ mostly in tempo and metre, which the beat and downbeat "
+        f"channels carry, but the models have learnt from {few} songs per style apart from {common} and "
+        "fit their training songs far better than new ones: treat the style as a suggestion that the user "
+        "can override. The models know only the styles listed above. Rumba and cha-cha are both 4 beats a bar "
+        "and told apart mostly by tempo: a rumba whose beat is tracked at cha-cha tempo (as that of the test "
+        "rumba here, 130 bpm; two training rumbas are tracked at 120 and 188 bpm) is taken for a cha-cha.",
+        "",
+    ]
+    return "\n".join(out)
+
+
+def motion_style_card(model: MotionStyleModel, train: Sequence[Dance], test: Sequence[Dance], split: dict) -> str:
+    """Markdown: data, split, settings, held-out accuracy by segment and by dance, confusions."""
+    m, meta, styles = model.meta["metrics"], model.meta, model.styles
+
+    def minutes(ds: Sequence[Dance], st: str) -> str:
+        chosen = [d for d in ds if d.style == st]
+        return f"{len(chosen)} ({sum(len(d.positions) for d in chosen) / FPS / 60:.1f} min)"
+
+    def confusion(c: list[list[int]]) -> list[str]:
+        rows = [f"| {st} | " + " | ".join(map(str, row)) + " |" for st, row in zip(styles, c, strict=True)]
+        return ["| truth \\ predicted | " + " | ".join(styles) + " |", "|---" * (len(styles) + 1) + "|", *rows]
+
+    majority = max(sum(r) for r in m["confusion_segment"]) / sum(map(sum, m["confusion_segment"]))
+    return "\n".join([
+        "# Motion style classifier model card",
+        "",
+        "Dance-style classifier on motion (`dancenet_core/evaluation/motion_style.py`, weights `motion_style.pt`): the "
+        "feature extractor of the paper's FID (its embedding, the Bi-LSTM output averaged over time, "
+        f"{model.embedding_size} numbers) and the judge of style consistency. Trained by "
+        "`dancenet train motion-style`.",
+        "",
+        "## Data",
+        "",
+        "Dance with Melody captures fitted to each performer's skeleton (the paired dataset of `dancenet data "
+        f"build`), the 22 body joints' world positions at {FPS:g} fps, in {model.segment_s:g}-second segments, "
+        "moved onto one body (each bone keeps its direction and takes our default skeleton's length; the "
+        "root's path scales with the legs): each style here was danced by its own performers, and a model "
+        "that saw their own bodies learnt their sizes (perfect on held-out captures, wrong on the same dances "
+        "on another skeleton). Input per frame: joints relative to the root in the "
+        "dancer's heading frame, the root's velocity in that frame and its turning rate "
+        f"({N_INPUTS} numbers; no height above the floor, so floating or sinking feet do not pass for a "
+        "style), standardised with the training set's statistics. Split: the song split the whole "
+        f"project uses (`song_split.json`, by song, stratified by style, seed {split['seed']}); styles only "
+        "in excluded songs are not learnt "
+        f"({', '.join(f'{s}: {why}' for s, why in split['excluded'].items()) or 'none'}).",
+        "",
+        "| style | train dances | test dances |",
+        "|---|---|---|",
+        *[f"| {st} | {minutes(train, st)} | {minutes(test, st)} |" for st in styles],
+        "",
+        "## Training",
+        "",
+        f"Adam, learning rate {meta['lr']:g} (divided by 10 for the last quarter), {meta['steps']} steps of "
+        f"{meta['batch']} segments, seed {meta['seed']}, cross-entropy, one CPU thread: "
+        f"{meta['train_seconds']} s. Each segment: a style drawn uniformly (waltz has most dances), then one "
+        f"of its dances and a random crop, time-stretched by up to +-{100 * MOTION_AUG_TEMPO:g}% and mirrored "
+        f"left/right half the time. Network: Conv1d {N_INPUTS}-{model.config['channels']} "
+        f"x3 (kernel 5, strides 1-2-2, BatchNorm, ReLU), Bi-LSTM of {model.config['hidden']} units each way, "
+        f"mean over time, dropout {model.config['dropout']:g}, FC. No validation split, no early stopping: "
+        "the last step is shipped.",
+        "",
+        "## Held-out results (test split)",
+        "",
+        f"Segments every {HOP_S:g} s over each test dance; a dance's style is the mean of its segments' "
+        "probabilities.",
+        "",
+        "| | segment accuracy | balanced (mean recall) | dance accuracy | train segment accuracy |",
+        "|---|---|---|---|---|",
+        f"| always the most common style | {100 * majority:.1f}% | {100 / len(styles):.1f}% | - | - |",
+        f"| this model | {100 * m['segment_accuracy']:.1f}% | {100 * m['segment_balanced_accuracy']:.1f}% "
+        f"| {100 * m['dance_accuracy']:.1f}% | {100 * meta['train_metrics']['segment_accuracy']:.1f}% |",
+        "",
+        "### Confusion by segment",
+        "",
+        *confusion(m["confusion_segment"]),
+        "",
+        "### By dance",
+        "",
+        "| dance | truth | predicted (p of truth) | segments right |",
+        "|---|---|---|---|",
+        *[f"| {k} | {p['truth']} | {p['predicted']} ({p['p_truth']:.2f}) | {p['segments_right']} of {p['segments']} |"
+          for k, p in m["predictions"].items()],  # fmt: skip
+        "",
+        "## Limits",
+        "",
+        f"{len(test)} held-out dances, some styles with one each: the accuracy is indicative, and since each "
+        "style comes from its own performers, a performer's personal way of moving (not only the style) may "
+        "be part of what it recognises; body size and proportions are not. The model knows "
+        "only the styles above, and only motion like our captures (one dancer, ballroom, fitted skeleton). "
+        "Generated dances that drift from real motion can land anywhere in its embedding: that is what the "
+        "FID measures.",
+        "",
+    ])  # fmt: skip
+
+
+def write_motion_style_card(weights: Path = MOTION_STYLE_WEIGHTS) -> Path:
+    """Rewrite the model card beside `weights` from the metrics stored in it (no retraining)."""
+    model = MotionStyleModel.load(weights)
+    if "metrics" not in model.meta:
+        raise DanceNetError(f"{weights} has no held-out metrics; train it with `dancenet train motion-style`")
+    train, test, split = load_dances()
+    card = weights.with_name(MODEL_CARD.name)
+    write_text(card, motion_style_card(model, train, test, split))
+    return card
+
+
+def validation_sections(folder: Path | None) -> list[str]:
+    """The card's validation table and learning curve, from `dancenet validate` outputs in `folder`."""
+    if folder is None:
+        return []
+    lines = []
+    if (folder / "validation.md").is_file():
+        lines += ["", "## Settings chosen on the validation songs (`dancenet validate`)", "",
+                  (folder / "validation.md").read_text().strip()]
+    curve = folder / "learning_curve.json"
+    if curve.is_file():
+        c = json.loads(curve.read_text())
+        lines += ["", f"## Learning curve (`dancenet validate --curve`, temperature {c['temperature']}, foot model on)",
+                  "", "![learning curve](../../docs/learning_curve.png)", "",
+                  "| step | minutes | validation loss | FID_k (validation songs) | joint speed m/s | root extent m |",
+                  "|---|---|---|---|---|---|"]
+        for p in c["points"]:
+            loss = "-" if p["val_loss"] is None else f"{p['val_loss']:.3f}"
+            lines.append(f"| {p['step']} | {p['minutes']} | {loss} | {p['fid_k']:.1f} | "
+                         f"{p['joint_speed_m_s']:.3f} | {p['root_extent_m']:.2f} |")
+        lines.append(f"\nReal validation dances: FID_k {c['real_fid_k']:.1f} against the same training dances.")
+    return lines
+
+
+def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, footfix_info: dict | None,
+               extra: list[str] | None = None) -> str:
+    """The DanceNet model card, from the bundle's training facts, this run's measurements and `extra`
+    sections (validation, learning curve)."""
+    info, cfg = bundle.info, bundle.model.cfg
+    real, gen = before["summary"]["real"], before["summary"]["generated"]
+    held = "val" if "val_loss" in info else "test"
+    held_name = "validation songs" if held == "val" else "test songs"
+    lines = [
+        "# DanceNet model card",
+        "",
+        f"Weights: `dancenet.pt` ({sum(p.numel() for p in bundle.model.parameters()):,} parameters). "
+        "Generated by `dancenet train dancenet`; figures below by `dancenet card dancenet --card`.",
+        "",
+        "## Data",
+        f"- {info.get('data')}; {info.get('train_minutes', 0):.1f} minutes of training motion "
+        f"({len(info.get('train_sequences', []))} sequences), mirrored copies added (same music).",
+        f"- Styles: {', '.join(cfg.styles)}. Left out: "
+        + ", ".join(f"{k} ({v})" for k, v in info.get("styles_left_out", {}).items()) + ".",
+        "- Minutes of training motion per style: "
+        + ", ".join(f"{k} {v:.1f}" for k, v in info.get("minutes_per_style", {}).items()) + ".",
+        f"- Test sequences (never trained on): {', '.join(info.get('test_sequences', []))}.",
+        f"- Validation sequences (training songs left out of training; settings chosen on them): "
+        f"{', '.join(info.get('validation_sequences', [])) or 'none'}.",
+        f"- Started from: {info.get('init') or 'random initialisation'}.",
+        f"- {info.get('windows', 0)} training windows of {cfg.music_window} frames (stride 3), k-means "
+        f"clusters of sizes {info.get('cluster_sizes')}, sampled so each cluster weighs the same.",
+        "",
+        "## Settings",
+        f"- {cfg.fps:g} fps; {cfg.layers} gated residual layers, dilations {cfg.dilations[:cfg.dilation_cycle]} "
+        f"repeated, receptive field {cfg.receptive_field} frames ({cfg.receptive_field / cfg.fps:.1f} s); "
+        f"residual {cfg.residual_channels}, skip {cfg.skip_channels}, motion encoder {cfg.motion_channels} "
+        f"channels; music code {cfg.music_code}, style embedding {cfg.style_dim}; a mixture of {cfg.mixtures} "
+        f"Gaussian(s), sampled by drawing a component by its weight, then sigma x temperature within it.",
+        f"- RMSprop, lr {info['settings']['lr']} dropped by 10 at 77% of the run, batch {info['settings']['batch']}, "
+        f"input dropout {cfg.input_dropout}, noise 0.04 on inputs and 0.01 on targets, gradient clip 10, "
+        f"seed {info['settings']['seed']}.",
+        f"- Trained {info.get('steps')} steps in {info.get('train_seconds', 0) / 60:.0f} minutes on a 2-core CPU.",
+        "",
+        "## Test metrics",
+        f"{held.capitalize()} loss (mixture NLL per modelled channel + 0.1 x contact BCE): "
+        f"{info.get(f'{held}_loss', float('nan')):.3f} (NLL {info.get(f'{held}_nll', float('nan')):.3f}, "
+        f"BCE {info.get(f'{held}_bce', float('nan')):.3f}), on the {held_name}.",
+        "",
+        f"Generated (temperature {before['temperature']}, seed {before['seed']}) vs real dances on the same "
+        "music spans of the test sequences; Beat Align Score with sigma 50 ms (Bailando's 3 frames at 60 fps):",
+        "",
+        "| metric | real | generated | generated + foot model |",
+        "|---|---|---|---|",
+    ]
+    fixed = after["summary"]["generated"] if after else {}
+    for key in ("beat_align_score", "rhythm_hit_rate", "foot_slide_ratio", "foot_slide_m_per_contact_frame",
+                "contact_ratio", "min_lowest_toe_m", "max_lowest_toe_m", "jitter_m_s2", "longest_freeze_s",
+                "max_longest_freeze_s", "root_extent_m"):
+        lines.append(f"| {key} | {real[key]:.4f} | {gen[key]:.4f} | {fixed.get(key, float('nan')):.4f} |")
+    lines += [
+        "",
+        "- contact_ratio: share of toe frames within 5 cm of the dance's floor; min/max_lowest_toe_m: each dance's "
+        "lowest toe (floor at y = 0), lowest and highest over the dances; max_longest_freeze_s: worst dance.",
+        f"- Beat Align Score, generated / real: {gen['beat_align_score'] / real['beat_align_score']:.2f}.",
+        f"- Foot sliding before the foot model, generated / real: "
+        f"{gen['foot_slide_ratio'] / max(real['foot_slide_ratio'], 1e-9):.2f}.",
+        f"- Longest freeze over all test dances: {gen['max_longest_freeze_s']:.2f} s; largest distance from the "
+        f"start: {gen['max_root_extent_m']:.2f} m.",
+        f"- Foot-contact accuracy of DanceNet's predictions against contacts detected on the real dance at the "
+        f"same frames: {gen['contact_accuracy']:.3f} (a different dance, so this is agreement, not error).",
+    ]
+    if footfix_info:
+        lines += [
+            "",
+            "## Foot Constraint Model (`footfix.pt`)",
+            f"Test MSE on simulated sliding (normalised lower-body channels): ours (temporal conv) "
+            f"{footfix_info['ours']['test_mse']:.4f}, baseline (FC + LSTM + FC) "
+            f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
+            f"uncorrected {footfix_info['ours']['test_mse_without_model']:.4f}.",
+        ]
+    return "\n".join(lines + (extra or [])) + "\n"

@@ -1,0 +1,258 @@
+"""Train DanceNet (or, with --variant, an ablation or baseline of the paper's comparison) on the paired
+dataset (supplement's settings, sized for a 2-core CPU).
+
+Runs in the background with checkpoints (resume with --resume), a fixed seed, and a JSON-lines log of
+train and test loss. Under `torchrun --nproc_per_node N` it trains data-parallel (gloo on CPU, nccl on
+GPUs); only rank 0 writes.
+
+    dancenet train dancenet --out runs/dancenet --minutes 100
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from ..checkpoint import load_weights, save_weights
+from ..data.build import PairedSequence, build_dataset, mean_skeleton, with_mel_music
+from ..data.split import load_split
+from ..data.windows import WindowSampler
+from ..environment import default_data_dir
+from ..model.bundle import DanceNetBundle
+from ..model.variants import build_model, music_features
+from ..representation import FeatureLayout, Normalizer
+from .configs import TrainSettings
+
+MIN_STYLE_SEQUENCES = 2  # a style danced in fewer training sequences cannot be learned or held out
+
+
+def shipped_styles(pairs: list, train_ids: set[str]) -> tuple[list[str], dict[str, str]]:
+    """Styles with enough training sequences, and the reason each other style is left out."""
+    counts: dict[str, int] = {}
+    for p in pairs:
+        counts[p.style] = counts.get(p.style, 0) + (p.seq in train_ids)
+    keep = sorted(s for s, c in counts.items() if c >= MIN_STYLE_SEQUENCES)
+    left_out = {s: f"only {c} training sequence(s)" for s, c in counts.items() if s not in keep}
+    return keep, left_out
+
+
+def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
+    """Start `model` from a trained DanceNet of the same sizes but maybe fewer mixture components or styles.
+
+    Every component starts as the source's first one (means nudged apart so they can specialise, logits
+    equal); a style the source lacks starts at the mean of its style embeddings. Why: the CPU budget buys
+    a few thousand steps, and starting from a trained network spends them on what is new.
+    """
+    src, dst = source.state_dict(), model.state_dict()
+    k_src, k, d = source.cfg.mixtures, model.cfg.mixtures, model.cfg.continuous_dim
+    for name, value in src.items():
+        if name in dst and dst[name].shape == value.shape:
+            dst[name] = value.clone()
+    emb = "style_embedding.weight"
+    rows = {s: src[emb][i] for i, s in enumerate(source.cfg.styles)}
+    mean = src[emb].mean(0)
+    dst[emb] = torch.stack([rows.get(s, mean) for s in model.cfg.styles])
+    if k == k_src and model.cfg.residual_output == source.cfg.residual_output:
+        model.load_state_dict(dst)  # same head: nothing to re-lay out
+        return
+    gen = torch.Generator().manual_seed(0)
+    for name in ("decoder.3.weight", "decoder.3.bias"):
+        w = src[name]
+        mu = w[k_src : k_src + d]
+        if model.cfg.residual_output and not source.cfg.residual_output:
+            mu = torch.zeros_like(mu)  # a change of zero: the warm-started model first copies the last frame
+        ls = w[k_src + k_src * d : k_src + 2 * k_src * d][:d]
+        contacts = w[k_src + 2 * k_src * d :]
+        logits = torch.zeros((k,) + w.shape[1:])
+        spread = mu.std() if mu.abs().max() > 0 else w.std()
+        mus = [mu + (0.0 if i == 0 else 0.05 * torch.randn(mu.shape, generator=gen) * spread) for i in range(k)]
+        dst[name] = torch.cat([logits, *mus, *([ls] * k), contacts])
+    model.load_state_dict(dst)
+
+
+@torch.no_grad()
+def with_own_predictions(model: torch.nn.Module, frames: torch.Tensor, music: torch.Tensor, style: torch.Tensor,
+                         share: float) -> torch.Tensor:
+    """`frames` [B, T, D] with a random `share` of frames 1.. replaced by the model's own one-step draws
+    (component by its weight, then its mean and half its spread; contacts by their logits).
+
+    Why: teacher forcing only ever shows the network real previous frames, so its first own mistakes at
+    generation are inputs it never saw, and a dance drifts or freezes (exposure bias). Trained on its own
+    draws against the real next frame, it learns to steer back (parallel scheduled sampling, one pass).
+    """
+    was_training = model.training
+    model.eval()
+    logits, mu, log_sigma, contacts = model.split(model(frames, music, style))
+    model.train(was_training)
+    comp = torch.distributions.Categorical(logits=logits).sample()[..., None, None]
+    d = mu.shape[-1]
+    pick = comp.expand(*comp.shape[:-2], 1, d)
+    mean = mu.gather(-2, pick)[..., 0, :]
+    sigma = log_sigma.gather(-2, pick)[..., 0, :].exp()
+    own = torch.cat([mean + 0.5 * sigma * torch.randn_like(mean), (contacts > 0).to(mean.dtype)], -1)
+    own[..., :d] *= model.modelled.to(own.dtype)  # constant channels stay at their (zero) value
+    mask = torch.rand(frames.shape[:2], device=frames.device)[..., None] < share
+    mixed = frames.clone()
+    mixed[:, 1:] = torch.where(mask[:, 1:], own, frames[:, 1:])
+    return mixed
+
+
+def _ddp() -> tuple[int, int]:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world > 1 and not torch.distributed.is_initialized():
+        backend = "nccl" if torch.cuda.is_available() else "gloo"
+        torch.distributed.init_process_group(backend)
+    rank = torch.distributed.get_rank() if world > 1 else 0
+    return rank, world
+
+
+def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split: dict | None = None) -> Path:
+    """Train; `pairs` and `split` default to the built dataset and the shipped song split."""
+    rank, world = _ddp()
+    local = int(os.environ.get("LOCAL_RANK", 0))
+    device = torch.device(f"cuda:{local}" if torch.cuda.is_available() else "cpu")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(args.seed + rank)
+    rng = np.random.default_rng(args.seed + rank)
+
+    if pairs is None:
+        pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
+        if music_features(args.variant) == "mel":
+            pairs = with_mel_music(pairs, args.data or default_data_dir())
+    split = split or load_split()
+    # Validation songs (training songs held out by song) stay out of training: settings are chosen on them.
+    held_out = set(split.get("validation", [])) if args.validation else set()
+    train_ids, test_ids = set(split["train"]) - held_out, set(split["test"])
+    styles, left_out = shipped_styles(pairs, train_ids)
+    train_pairs = [p for p in pairs if p.seq in train_ids and p.style in styles]
+    test_pairs = [p for p in pairs if p.seq in test_ids and p.style in styles]
+    layout = FeatureLayout(55, 5)
+    init = DanceNetBundle.load(args.init) if args.init else None
+    # A warm start keeps its normaliser: its weights were learnt on that scale.
+    norm = init.normalizer if init else Normalizer.fit(
+        [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
+    model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
+                        mixtures=args.mixtures, residual_output=args.residual_output,
+                        input_skip=args.input_skip)
+    cfg = model.cfg
+    if args.input_dropout is not None:
+        cfg.input_dropout = args.input_dropout
+    model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
+    if init:
+        warm_start(model, init.model)
+    model.to(device)
+    net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 else model
+    opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
+
+    train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
+    # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
+    # test songs (a figure for the card only).
+    eval_name = "val" if held_out else "test"
+    eval_pairs = [p for p in pairs if p.seq in held_out and p.style in styles] if held_out else test_pairs
+    test_windows = WindowSampler(eval_pairs, norm, styles, layout, window=args.window, stride=25,
+                                 seed=args.seed).fixed_windows(64)
+    start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
+    info = {
+        "variant": args.variant,
+        "data": "Dance with Melody (Tang et al. 2018, both folders), training split of weights/song_split.json"
+                + (" less its validation songs" if held_out else ""),
+        "validation_sequences": sorted(held_out),
+        "init": str(args.init) if args.init else None,
+        "minutes_per_style": {s: round(sum(len(p.motion) for p in train_pairs if p.style == s) / 1500, 2)
+                              for s in styles},
+        "train_sequences": sorted(p.seq for p in train_pairs),
+        "test_sequences": sorted(p.seq for p in test_pairs),
+        "styles_left_out": left_out,
+        "train_minutes": sum(len(p.motion) for p in train_pairs) / 25 / 60,
+        "windows": len(train_windows.index),
+        "cluster_sizes": train_windows.cluster_sizes.tolist(),
+        "settings": asdict(args) | {"data": str(args.data)},
+    }
+
+    step, elapsed = 0, 0.0
+    ckpt = out / "checkpoint.pt"
+    if args.resume and ckpt.is_file():
+        state = load_weights(ckpt, "training checkpoint", "delete it to start the run afresh")
+        model.load_state_dict(state["bundle"]["state_dict"])
+        opt.load_state_dict(state["optimizer"])
+        step, elapsed = state["step"], state["elapsed"]
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        if rank == 0:
+            print(f"resumed at step {step} ({elapsed / 60:.1f} min)")
+
+    def bundle() -> DanceNetBundle:
+        return DanceNetBundle(model, norm, mean_skeleton(train_pairs), start_frames,
+                              info | {"steps": step, "train_seconds": elapsed})
+
+    def held_out_loss() -> dict[str, float]:
+        model.eval()
+        with torch.no_grad():
+            tb = test_windows
+            music = torch.tensor(tb.music, device=device)
+            o = model(torch.tensor(tb.motion, device=device), music, torch.tensor(tb.style, device=device))
+            loss, parts = model.loss(o, torch.tensor(tb.target[:, 1:], device=device), music[:, 1:])
+        model.train()
+        return {f"{eval_name}_loss": loss.item()} | {f"{eval_name}_{k}": v for k, v in parts.items()}
+
+    log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
+    model.train()
+    t_last = time.time()
+    budget = args.minutes * 60
+    while step < args.steps and elapsed < budget:
+        b = train_windows.batch(rng, args.batch, input_noise=args.input_noise)
+        noisy = torch.tensor(b.motion, device=device)
+        music = torch.tensor(b.music, device=device)
+        style = torch.tensor(b.style, device=device)
+        if args.own_inputs > 0:
+            noisy = with_own_predictions(model, noisy, music, style, args.own_inputs)
+        x = F.dropout(noisy, cfg.input_dropout, training=True)
+        # A residual output starts from the frame before dropout: dropout hides channels from the network,
+        # not from the frame the change is added to (at generation that frame is whole).
+        o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)
+        loss, parts = model.loss(o, torch.tensor(b.target[:, 1:], device=device), music[:, 1:])
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        opt.step()
+        step += 1
+        # The supplement drops the rate by 10 at 77% of training (epoch 1000 of 1300); here 77% of the
+        # planned steps or of the time budget, whichever comes first.
+        if max(step / args.steps, elapsed / budget) >= 0.77 and opt.param_groups[0]["lr"] > args.lr * 0.5:
+            for g in opt.param_groups:
+                g["lr"] = args.lr * 0.1
+        now = time.time()
+        elapsed += now - t_last
+        t_last = now
+        if rank == 0 and (step % args.log_every == 0 or step == 1):
+            rec = {"step": step, "minutes": round(elapsed / 60, 2), "lr": opt.param_groups[0]["lr"],
+                   "loss": loss.item(), **parts}
+            if step % (args.log_every * 5) == 0 or step == 1:
+                rec |= held_out_loss()
+            log.write(json.dumps(rec) + "\n")
+            log.flush()
+        if rank == 0 and args.snapshot_every and step % args.snapshot_every == 0:
+            # Kept weights along the way: the learning curve (held-out FID_k against time) is measured on them.
+            (out / "snapshots").mkdir(exist_ok=True)
+            bundle().save(out / "snapshots" / f"step{step:06d}.pt")
+        if rank == 0 and step % args.checkpoint_every == 0:
+            save_weights({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(), "step": step,
+                          "elapsed": elapsed, "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()},
+                         ckpt)
+            t_last = time.time()
+    if rank == 0:
+        final = bundle()
+        final.info |= held_out_loss()
+        final.save(out / "dancenet.pt")
+        log.write(json.dumps({"step": step, "minutes": round(elapsed / 60, 2), "done": True,
+                              **held_out_loss()}) + "\n")
+        log.close()
+    return out / "dancenet.pt"

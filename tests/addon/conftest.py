@@ -1,0 +1,32 @@
+"""Fixtures of the add-on tests: the registered add-on, an empty scene with the fake generator, a song."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from doubles import FAKE_STYLES, make_fake_generator, write_song
+from scene_helpers import bpy
+
+
+@pytest.fixture(scope="module")
+def addon():
+    import blender_addon
+
+    blender_addon.register()
+    yield blender_addon
+    blender_addon.unregister()
+
+
+@pytest.fixture
+def scene(addon, monkeypatch):
+    """An empty scene (24 fps: the fake dances at 30, so keys are resampled), the fake generator in place."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    monkeypatch.setattr(addon.pipeline, "load_generator", make_fake_generator)
+    monkeypatch.setattr(addon.pipeline, "available_styles", lambda: list(FAKE_STYLES))
+    return bpy.context.scene
+
+
+@pytest.fixture
+def song(tmp_path) -> Path:
+    return write_song(tmp_path / "Test Song.wav", seconds=2.0)

@@ -1,0 +1,79 @@
+"""Made-up inputs for the tests: music (click tracks, chords, analyses with known beats and bars), a small
+motion, and where the real data lives (tests that need it skip cleanly when it is absent)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from dancenet_core.motion import Motion
+from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
+from dancenet_core.music.features import MusicAnalysis
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def data_root() -> Path:
+    return Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data"))
+
+
+def click_track(bpm: float, dur: float = 12.0, offset: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Clicks (noise plus a tone, decaying in ~4 ms) on every beat, louder and higher on every 4th."""
+    rng = np.random.default_rng(int(bpm))
+    x = np.zeros(int(dur * MADMOM_SAMPLE_RATE), np.float32)
+    times = np.arange(offset, dur - 0.05, 60.0 / bpm)
+    n = int(0.03 * MADMOM_SAMPLE_RATE)
+    t = np.arange(n) / MADMOM_SAMPLE_RATE
+    env = np.exp(-t / 0.004)
+    for i, when in enumerate(times):
+        s = int(round(when * MADMOM_SAMPLE_RATE))
+        amp, freq = (0.9, 1500) if i % 4 == 0 else (0.5, 1000)
+        burst = amp * env * (0.5 * rng.standard_normal(n) + np.sin(2 * np.pi * freq * t))
+        x[s : s + n] += burst[: len(x) - s]
+    return x, times
+
+
+def music(dur: float, seed: int = 0) -> np.ndarray:
+    """Chords on a 120 BPM pulse with a little noise: enough structure for every network."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(dur * MADMOM_SAMPLE_RATE))) / MADMOM_SAMPLE_RATE
+    root = 220 * 2 ** (np.floor(t / 2) % 4 * 5 / 12)
+    pulse = 0.5 + 0.5 * np.exp(-(t % 0.5) / 0.05)
+    tone = sum(np.sin(2 * np.pi * root * r * t) for r in (1, 1.26, 1.5)) / 3
+    return (0.4 * pulse * tone + 0.01 * rng.standard_normal(len(t))).astype(np.float32)
+
+
+def small_motion(frames: int = 20) -> Motion:
+    rng = np.random.default_rng(0)
+    rot = 0.2 * rng.standard_normal((frames, 55, 3))
+    root = np.stack([np.zeros(frames), np.full(frames, 0.9), np.linspace(0, 1, frames)], -1)
+    return Motion(rot, root, 25.0)
+
+
+def analysis(features: np.ndarray, beat_s: float = 0.5, bar: int = 4) -> MusicAnalysis:
+    """An analysis of `features` (10 fps) with a beat every `beat_s` seconds and a downbeat every `bar` beats."""
+    beats = np.arange(0.0, len(features) / 10, beat_s)
+    return MusicAnalysis(features, beats, beats[::bar], 60 / beat_s, len(features) / 10)
+
+
+def clicks(num_frames: int, period: int, bar: int) -> np.ndarray:
+    """Features with a beat every `period` frames, a downbeat every `bar` beats (activations peaking over three
+    frames, as madmom's do at 10 fps) and some chroma."""
+    x = np.zeros((num_frames, 15), np.float32)
+    for col, step in ((12, period), (13, period * bar)):
+        x[::step, col] = 1.0
+        x[1::step, col] = x[step - 1 :: step, col] = 0.5
+    x[:, :12] = np.random.default_rng(1).random((num_frames, 12))
+    return x
+
+
+def peak_frames(column: np.ndarray) -> np.ndarray:
+    """Local maxima above a quarter of the full height: beats in an (interpolated, scaled) activation."""
+    c = np.pad(column, 1)
+    return np.flatnonzero((c[1:-1] > 0.25) & (c[1:-1] >= c[:-2]) & (c[1:-1] > c[2:]))
+
+
+def peaks(column: np.ndarray) -> int:
+    return len(peak_frames(column))

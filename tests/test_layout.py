@@ -1,0 +1,82 @@
+"""The layout's promises (README "Layout"): what dances loads no training, data, evaluation or command code;
+`dancenet --help` is quick and torch-free; the command line and the settings dataclasses agree; and the
+import contracts hold."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+
+from dancenet_core import __version__
+from dancenet_core.cli import build_parser
+from dancenet_core.training.configs import FootfixSettings, MotionStyleSettings, StyleSettings, TrainSettings, from_args
+
+REPO = Path(__file__).resolve().parents[1]
+APART_FROM_DANCING = ("dancenet_core.data", "dancenet_core.training", "dancenet_core.evaluation",
+                      "dancenet_core.commands", "matplotlib", "sklearn")
+
+
+def _modules_after(code: str) -> list[str]:
+    """The modules loaded by `code` in a fresh interpreter."""
+    probe = f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=REPO)
+    return json.loads(out.stdout.splitlines()[-1])
+
+
+@pytest.mark.parametrize("prefix", APART_FROM_DANCING)
+def test_importing_generate_loads_nothing_apart_from_dancing(prefix: str) -> None:
+    loaded = _modules_after("import dancenet_core.generate")
+    assert [m for m in loaded if m == prefix or m.startswith(prefix + ".")] == []
+
+
+def test_help_does_not_import_torch() -> None:
+    loaded = _modules_after("import contextlib\nfrom dancenet_core.cli import main\n"
+                            "with contextlib.suppress(SystemExit):\n    main(['--help'])")
+    assert "torch" not in loaded
+
+
+def test_help_takes_under_half_a_second() -> None:
+    """Best of three runs of the installed command (the machine is shared)."""
+    dancenet = shutil.which("dancenet", path=str(Path(sys.executable).parent))
+    assert dancenet is not None
+    times = []
+    for _ in range(3):
+        t = time.perf_counter()
+        subprocess.run([dancenet, "--help"], capture_output=True, check=True)
+        times.append(time.perf_counter() - t)
+    assert min(times) < 0.5
+
+
+def test_version() -> None:
+    out = subprocess.run([sys.executable, "-m", "dancenet_core.cli", "--version"], capture_output=True, text=True,
+                         cwd=REPO)
+    assert out.stdout.strip() == f"dancenet {__version__}"
+
+
+@pytest.mark.parametrize(("model", "settings"), [("dancenet", TrainSettings), ("footfix", FootfixSettings),
+                                                 ("style", StyleSettings), ("motion-style", MotionStyleSettings)])
+def test_train_options_are_the_settings_dataclass(model: str, settings: type) -> None:
+    """Every field is an option, and with no options the command trains with the dataclass's defaults."""
+    args = build_parser(["train", model]).parse_args(["train", model])
+    assert from_args(settings, args) == settings()
+    assert {f.name for f in fields(settings)} <= set(vars(args))
+
+
+def test_train_options_set_the_settings() -> None:
+    argv = ["train", "dancenet", "--steps", "7", "--residual-output", "--init", "a.pt", "--out", "runs/x"]
+    got = from_args(TrainSettings, build_parser(argv).parse_args(argv))
+    assert got == TrainSettings(steps=7, residual_output=True, init=Path("a.pt"), out=Path("runs/x"))
+
+
+def test_import_contracts_hold() -> None:
+    """import-linter's contracts in pyproject.toml (layers; what dances imports; no cycles)."""
+    lint = Path(sys.executable).parent / "lint-imports"
+    out = subprocess.run([str(lint), "--no-cache"], capture_output=True, text=True, cwd=REPO)
+    assert out.returncode == 0, out.stdout[-3000:]

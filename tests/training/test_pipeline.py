@@ -1,0 +1,118 @@
+"""End to end on data the test makes itself: train a tiny DanceNet, then `dancenet generate` with it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from dancenet_core.cli import main as cli_main
+from dancenet_core.data.build import PairedSequence
+from dancenet_core.generate import generate_dance
+from dancenet_core.model.bundle import DanceNetBundle
+from dancenet_core.motion import Motion
+from dancenet_core.representation import encode
+from dancenet_core.skeleton import BODY_JOINTS
+from dancenet_core.training.configs import TrainSettings
+from dancenet_core.training.dancenet import train
+
+
+def _pair(seed: int, style: str, frames: int = 300) -> PairedSequence:
+    rng = np.random.default_rng(seed)
+    tt = np.arange(frames) / 25
+    rot = 0.3 * np.sin(tt[:, None, None] * rng.uniform(0.5, 3, (1, 55, 3)) * 2 * np.pi)
+    rot[:, 25:] = 0.0
+    root = np.stack([0.2 * np.sin(tt), 0.95 + 0.02 * np.sin(6 * tt), 0.2 * np.cos(tt)], -1)
+    m = Motion(rot, root, 25.0)
+    music = rng.normal(size=(frames, 15)).astype(np.float32)
+    return PairedSequence(f"SEQ_{seed}", style, encode(m), encode(m.mirrored()), music,
+                          m.positions()[:, :BODY_JOINTS].astype(np.float32), m.skeleton.offsets, 0.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("run")
+    settings = TrainSettings(out=out, minutes=5, steps=4, batch=2, window=100, log_every=2, checkpoint_every=2)
+    path = train(settings, *_tiny_dataset())
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert log[-1]["done"]
+    assert np.isfinite(log[-1]["test_loss"])
+    assert (out / "checkpoint.pt").is_file()
+    return path
+
+
+def _tiny_dataset() -> tuple[list[PairedSequence], dict]:
+    pairs = [_pair(0, "rumba"), _pair(1, "rumba"), _pair(2, "waltz"), _pair(3, "waltz"), _pair(4, "waltz")]
+    return pairs, {"train": ["SEQ_0", "SEQ_1", "SEQ_2", "SEQ_3"], "test": ["SEQ_4"]}
+
+
+def test_training_resumes_from_its_plain_checkpoint(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The checkpoint holds plain tensors (read with weights_only=True) and carries the run on where it stopped."""
+    settings = TrainSettings(out=tmp_path, minutes=5, steps=2, batch=2, window=100, log_every=1, checkpoint_every=2)
+    train(settings, *_tiny_dataset())
+    train(replace(settings, steps=4, resume=True), *_tiny_dataset())
+    assert "resumed at step 2" in capsys.readouterr().out
+    steps = [json.loads(line)["step"] for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    assert steps[-1] == 4
+
+
+@pytest.fixture(scope="module")
+def click_song(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    sr = 22050
+    t = np.arange(int(8.0 * sr)) / sr
+    y = 0.1 * np.sin(2 * np.pi * 220 * t)
+    for beat in np.arange(0.5, 8.0, 0.5):
+        i = int(beat * sr)
+        y[i : i + 400] += np.hanning(800)[400:] * np.sin(2 * np.pi * 1000 * t[:400])
+    path = tmp_path_factory.mktemp("song") / "clicks.wav"
+    sf.write(path, y.astype(np.float32), sr)
+    return path
+
+
+def test_bundle_round_trip(tiny_weights: Path) -> None:
+    b = DanceNetBundle.load(tiny_weights)
+    assert b.styles == ["rumba", "waltz"]  # read from the weights, not hard-coded
+    assert b.info["train_sequences"] == ["SEQ_0", "SEQ_1", "SEQ_2", "SEQ_3"]
+
+
+def test_generate_is_seeded_and_song_length(tiny_weights: Path, click_song: Path) -> None:
+    kw = dict(style="waltz", temperature=0.5, takes=2, footfix=False, weights=str(tiny_weights))
+    a = generate_dance(click_song, seed=3, **kw)
+    b = generate_dance(click_song, seed=3, **kw)
+    c = generate_dance(click_song, seed=4, **kw)
+    assert len(a.motions) == 2
+    assert a.motions[0].num_frames == round(a.duration_s * 25)
+    np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)
+    assert not np.array_equal(a.motions[0].rotations, c.motions[0].rotations)
+    assert not np.array_equal(a.motions[0].rotations, a.motions[1].rotations)
+    assert a.style == "waltz"
+    assert len(a.beat_times) > 5
+
+
+def test_cli_generate_writes_files_and_same_seed_same_bytes(tiny_weights: Path, click_song: Path,
+                                                          tmp_path: Path) -> None:
+    for out in ("a", "b"):
+        rc = cli_main(["generate", str(click_song), "-o", str(tmp_path / out), "--style", "rumba", "--seed", "9",
+                       "--no-footfix", "--weights", str(tiny_weights)])
+        assert rc == 0
+    assert (tmp_path / "a" / "clicks.bvh").read_bytes() == (tmp_path / "b" / "clicks.bvh").read_bytes()
+    summary = json.loads((tmp_path / "a" / "clicks.json").read_text())
+    assert summary["style"] == "rumba"
+    assert summary["frames"] == Motion.load(tmp_path / "a" / "clicks.npz").num_frames
+    assert set(summary["timings_s"]) >= {"analysis_s", "generation_s", "total_s"}
+
+
+def test_cli_reports_bad_input_in_one_line(tiny_weights: Path, tmp_path: Path, capsys) -> None:
+    rc = cli_main(["generate", str(tmp_path / "missing.mp3"), "-o", str(tmp_path / "o"),
+                   "--weights", str(tiny_weights)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert err.startswith("dancenet: error:")
+    assert "\n" not in err
+    rc = cli_main(["generate", str(tmp_path / "missing.mp3"), "-o", str(tmp_path / "o"), "--style", "tango",
+                   "--weights", str(tiny_weights)])
+    assert rc == 2
