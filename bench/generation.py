@@ -4,15 +4,18 @@
   receptive-field frames for every new frame, as the authors' release does), and their ratio;
 - seconds to dance a 3-minute song once its music analysis is cached (style, music encoder, sampling,
   decoding, foot clean-up), and the cold analysis it needs the first time;
-- peak resident memory of a whole `generate_dance` for a 10-minute song, in a fresh process.
+- peak resident memory of a whole `generate_dance` for a 10-minute song, in a fresh process;
+- the numpy runtime against the torch networks it replaced (issue 15): the 3-minute song's dance and the
+  10-minute song's peak memory (analysis cached, fresh processes) by each path, and their ratios.
 
-    .venv/bin/python bench/generation.py [--weights PATH] [--skip-memory]
+    .venv/bin/python bench/generation.py [--weights PATH.pt] [--skip-memory]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -39,12 +42,25 @@ def synth_song(path: Path, seconds: float, bpm: float = 120.0, sr: int = 22050) 
         f.write(y.astype(np.float32))
 
 
+def use_torch_networks(weights: str | None) -> None:
+    """Make `generate_dance` run the torch networks of the checkpoints (the path before the numpy runtime)."""
+    from dancenet_core import generate
+    from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from dancenet_core.model.footfix import FootFixer
+    from dancenet_core.music.style_torch import StyleModel
+
+    bundle, style, fixer = DanceNetBundle.load(weights or DEFAULT_BUNDLE), StyleModel.load(), FootFixer.load()
+    generate.load_bundle = lambda path=None: bundle
+    generate.load_style_model = lambda path=None: style
+    generate.foot_fixer = lambda: fixer
+
+
 def sampler_speed(weights: str | None) -> dict:
-    from dancenet_core.generate import load_bundle
+    from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning, naive_run
 
-    bundle = load_bundle(weights)
-    model, rf = bundle.model, bundle.model.cfg.receptive_field
+    model = DanceNetBundle.load(weights or DEFAULT_BUNDLE).model  # the naive way runs the torch model
+    rf = model.cfg.receptive_field
     rng = np.random.default_rng(0)
     frames = 3000
     cond = music_conditioning(model, rng.normal(size=(frames, 15)).astype(np.float32), 0)
@@ -68,6 +84,7 @@ def sampler_speed(weights: str | None) -> dict:
 
 
 def three_minute_song(weights: str | None, workdir: Path) -> dict:
+    """The numpy path (cold, then with the analysis cached) and, in a fresh process, the torch path."""
     from dancenet_core.generate import generate_dance
 
     song = workdir / "three_minutes.wav"
@@ -78,28 +95,54 @@ def three_minute_song(weights: str | None, workdir: Path) -> dict:
     t = time.perf_counter()
     result = generate_dance(song, weights=weights, footfix=True, seed=1)
     warm = time.perf_counter() - t
+    torch_path = json.loads(in_fresh_process(f"""
+import time, json
+generation.use_torch_networks({weights!r})
+from dancenet_core.generate import generate_dance
+generate_dance({str(song)!r}, weights={weights!r}, footfix=True)  # torch's first calls
+t = time.perf_counter()
+r = generate_dance({str(song)!r}, weights={weights!r}, footfix=True, seed=1)
+print(json.dumps({{"s": time.perf_counter() - t, "stages": r.timings}}))
+"""))
     return {"song_s": 180.0, "first_run_s_with_cold_analysis": round(cold, 2),
             "dance_s_with_cached_analysis": round(warm, 2),
-            "stages_s": {k: round(v, 3) for k, v in result.timings.items()}}
+            "stages_s": {k: round(v, 3) for k, v in result.timings.items()},
+            "torch_networks_dance_s_with_cached_analysis": round(torch_path["s"], 2),
+            "torch_networks_stages_s": {k: round(v, 3) for k, v in torch_path["stages"].items()},
+            "numpy_over_torch_time": round(warm / torch_path["s"], 2)}
+
+
+def in_fresh_process(code: str, env: dict[str, str] | None = None) -> str:
+    """stdout of `code` run in a new interpreter that has the repository and this script (as `generation`)."""
+    prelude = f"import sys; sys.path[:0] = [{str(REPO)!r}, {str(REPO / 'bench')!r}]; import generation\n"
+    return subprocess.run([sys.executable, "-c", prelude + code], capture_output=True, text=True, check=True,
+                          env=os.environ | (env or {})).stdout
 
 
 def ten_minute_memory(weights: str | None, workdir: Path) -> dict:
+    """Peak memory in fresh processes: the numpy path with a cold analysis (the whole first run), then the
+    numpy and torch paths with the analysis cached (the networks' share). The peak is the process's own
+    high-water mark (VmHWM): ru_maxrss would start from this process's size, kept across fork and exec."""
     song = workdir / "ten_minutes.wav"
     synth_song(song, 600.0)
-    code = (
-        f"import resource, sys; sys.path.insert(0, {str(REPO)!r})\n"
-        "from dancenet_core.generate import generate_dance\n"
-        f"r = generate_dance({str(song)!r}, weights={weights!r})\n"
-        "print(r.motions[0].num_frames, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
-    )
-    env_cache = {"DANCENET_CACHE": str(workdir / "cache")}
-    import os
+    env = {"DANCENET_CACHE": str(workdir / "cache")}
 
-    t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         env=os.environ | env_cache).stdout.split()
-    return {"song_s": 600.0, "frames": int(out[0]), "peak_rss_mb": round(int(out[1]) / 1024, 1),
-            "seconds": round(time.perf_counter() - t, 1)}
+    def peak(torch_networks: bool) -> tuple[int, int, float]:
+        t = time.perf_counter()
+        out = in_fresh_process(
+            (f"generation.use_torch_networks({weights!r})\n" if torch_networks else "")
+            + "from dancenet_core.generate import generate_dance\n"
+            f"r = generate_dance({str(song)!r}, weights={weights!r})\n"
+            "hwm = next(line for line in open('/proc/self/status') if line.startswith('VmHWM:')).split()[1]\n"
+            "print(r.motions[0].num_frames, hwm)\n", env).split()
+        return int(out[0]), int(out[1]), time.perf_counter() - t
+
+    frames, cold_kb, cold_s = peak(False)
+    numpy_kb, torch_kb = peak(False)[1], peak(True)[1]
+    return {"song_s": 600.0, "frames": frames, "peak_rss_mb": round(cold_kb / 1024, 1), "seconds": round(cold_s, 1),
+            "peak_rss_mb_cached_analysis": round(numpy_kb / 1024, 1),
+            "torch_networks_peak_rss_mb_cached_analysis": round(torch_kb / 1024, 1),
+            "numpy_over_torch_peak_rss": round(numpy_kb / torch_kb, 2)}
 
 
 def main() -> None:

@@ -60,6 +60,7 @@ def summary(d: dict) -> dict:
                                                     "first_run_s_with_cold_analysis"),
         "three_minute_song_end_to_end_s_cached_analysis": pick("generation", "three_minute_song",
                                                                "dance_s_with_cached_analysis"),
+        "three_minute_song_numpy_over_torch_time": pick("generation", "three_minute_song", "numpy_over_torch_time"),
         "keyframes_3min_60fps_write_s": pick("keyframes", "foreach_set_write_s"),
         "keyframes_speedup_over_keyframe_insert": pick("keyframes", "speedup_write"),
         "pyrender_fps": pyrender.get("frames_per_s"),
@@ -73,6 +74,7 @@ def summary(d: dict) -> dict:
         "generate_3min_song_cached_stages_s": pick("end_to_end", "three_minute_song", "cached", "stages_s"),
         "demo_wall_s_after_setup": pick("end_to_end", "demo", "wall_s"),
         "peak_rss_mb_ten_minute_song": pick("generation", "ten_minute_song", "peak_rss_mb"),
+        "ten_minute_song_numpy_over_torch_peak_rss": pick("generation", "ten_minute_song", "numpy_over_torch_peak_rss"),
         "peak_rss_mib_analysis": pick("analysis", "peak_rss_mib"),
     }
 

@@ -18,6 +18,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from .continuation import join_kept
 from .errors import DanceNetError
+from .model.runtime import DEFAULT_RUNTIME, STYLE_RUNTIME, RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
+from .model.sampler import CachedSampler, Sampling, music_conditioning
 from .motion import Motion
 from .music.features import FPS as MUSIC_FPS
 from .music.features import MusicAnalysis, analyze_music, music_at_frames
@@ -26,9 +28,9 @@ from .representation import FeatureLayout, decode, encode
 
 if TYPE_CHECKING:
     from .model.bundle import DanceNetBundle
-    from .model.footfix import FootFixer
-    from .model.sampler import Sampling
-    from .music.style import StyleModel
+
+    # What generation runs: the runtime's arrays; training and evaluation pass their torch bundles too.
+    Bundle = RuntimeBundle | DanceNetBundle
 
 # Sampling temperature (scales the mixture's sigma), as the authors sample. At 0 the dance is the mixture's
 # mean and freezes within a minute; above ~0.3 per-frame noise shows as jitter.
@@ -60,29 +62,38 @@ class GenerationResult:
     start_s: float = 0.0  # where the dance starts in the song; beat times count from there
 
 
-# The trained networks run on torch (about 4 s to load), loaded with the first dance rather than with this
-# module: what imports it for its types and constants (the add-on, the commands' options, tests) needs no
-# torch, and a torch-free runtime (issue 15) is to take their place.
+def _is_checkpoint(path: str | Path | None) -> bool:
+    """A training checkpoint (`.pt`, torch) rather than the runtime's plain arrays (`.npz`)."""
+    return path is not None and Path(path).suffix == ".pt"
+
+
 @lru_cache(maxsize=2)
-def load_bundle(path: str | None = None) -> DanceNetBundle:
-    from .model.bundle import DEFAULT_BUNDLE, DanceNetBundle  # torch: see above
+def load_bundle(path: str | None = None) -> RuntimeBundle:
+    """The DanceNet weights as plain arrays: the shipped `.npz` by default; a training checkpoint (`.pt`, e.g.
+    from `runs/`) is converted in memory, which needs torch."""
+    if _is_checkpoint(path):
+        from .model.bundle import DanceNetBundle  # torch: only where checkpoints are trained
+        from .model.export import bundle_to_runtime
 
-    return DanceNetBundle.load(path or DEFAULT_BUNDLE)
+        return bundle_to_runtime(DanceNetBundle.load(path))
+    return RuntimeBundle.load(path or DEFAULT_RUNTIME)
+
+
+@lru_cache(maxsize=2)
+def load_style_model(path: str | None = None) -> RuntimeStyleModel:
+    """The music style classifier: the shipped `.npz` by default; a checkpoint (`.pt`) as for `load_bundle`."""
+    if _is_checkpoint(path):
+        from .model.export import style_to_runtime  # torch: only where checkpoints are trained
+        from .music.style_torch import StyleModel
+
+        return style_to_runtime(StyleModel.load(path))
+    return RuntimeStyleModel.load(path or STYLE_RUNTIME)
 
 
 @lru_cache(maxsize=1)
-def _style_model() -> StyleModel:
-    from .music.style import StyleModel  # torch: see above
-
-    return StyleModel.load()
-
-
-@lru_cache(maxsize=1)
-def foot_fixer() -> FootFixer:
+def foot_fixer() -> RuntimeFootFixer:
     """The shipped Foot Constraint Model (loaded once)."""
-    from .model.footfix import FootFixer  # torch: see above
-
-    return FootFixer.load()
+    return RuntimeFootFixer.load()
 
 
 def available_styles(weights: str | None = None) -> list[str]:
@@ -99,7 +110,7 @@ def choose_style(
         if requested not in styles:
             raise DanceNetError(f"unknown style '{requested}'; choose auto or one of: {', '.join(styles)}")
         return requested, {}
-    result = _style_model().classify(analysis)
+    result = load_style_model().classify(analysis)
     probs = {s: float(p) for s, p in zip(result.styles, result.probabilities, strict=True)}
     known = {s: p for s, p in probs.items() if s in styles}
     if not known:
@@ -107,7 +118,7 @@ def choose_style(
     return max(known, key=known.get), probs
 
 
-def sample_dance(bundle: DanceNetBundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,
+def sample_dance(bundle: Bundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,
                  progress: Progress | None = None, should_stop: Callable[[], bool] | None = None,
                  prefix: np.ndarray | None = None) -> list[np.ndarray]:
     """Sample frames for each take and return them unnormalised [T, D], lightly smoothed.
@@ -116,14 +127,12 @@ def sample_dance(bundle: DanceNetBundle, cond: np.ndarray, first: np.ndarray, sa
     authors smooth with sigma 1 at 60 fps) over the continuous channels takes that jitter out without
     blurring the steps. Contacts stay as predicted.
     """
-    from .model.sampler import CachedSampler  # torch: see load_bundle
-
     frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop,
                                                 prefix=prefix)
     return [finish_frames(bundle, take) for take in frames]
 
 
-def finish_frames(bundle: DanceNetBundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:
+def finish_frames(bundle: Bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:
     """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance);
     `smoothing` is the Gaussian's sigma in frames (0: none)."""
     cont = bundle.model.cfg.continuous_dim
@@ -141,7 +150,7 @@ def check_part(start_s: float, end_s: float | None) -> None:
         raise DanceNetError(f"end ({end_s} s) must be at least {MIN_PART_S:g} s after start ({start_s} s)")
 
 
-def kept_frames(bundle: DanceNetBundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:
+def kept_frames(bundle: Bundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:
     """The dance kept up to `at_s` seconds as the model's normalised frames [K, D] at its frame rate, or a
     one-line error when there is not enough of it before `at_s`, or of the song after."""
     fps = bundle.model.cfg.fps
@@ -218,8 +227,6 @@ def generate_dance(
     to that part), its first `at_s` seconds are kept and the rest is danced anew after them: the model
     hears the kept frames as its own, so the join flows. Same arguments, same seed: the same dance, bit
     for bit."""
-    from .model.sampler import Sampling, music_conditioning  # torch: see load_bundle
-
     check_request(song, style, seed, temperature, takes, footfix, weights, start_s, end_s)
     report = progress or (lambda _s, _f: None)
     cancelled = should_cancel or (lambda: False)

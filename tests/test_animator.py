@@ -62,12 +62,12 @@ def test_fps_outside_the_offered_rates_is_one_line(song: Path, tmp_path: Path, c
 def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path: Path, monkeypatch) -> None:
     import json
 
-    from dancenet_core.model import sampler
+    from dancenet_core import generate as core
     from dancenet_core.music.features import FPS, analyze_music, music_at_frames
 
     heard = []
-    real = sampler.music_conditioning
-    monkeypatch.setattr(sampler, "music_conditioning", lambda model, music, style: heard.append(music) or
+    real = core.music_conditioning
+    monkeypatch.setattr(core, "music_conditioning", lambda model, music, style: heard.append(music) or
                         real(model, music, style))
     m = generate(song, tmp_path, "--start", "4", "--end", "10", "--render")
     assert m.num_frames == 150  # 6 s at 25 fps

@@ -12,9 +12,9 @@ from tqdm import tqdm
 
 from ..atomic import write_text
 from ..errors import DanceNetError
+from ..generate import load_style_model
 from ..music.audio import load_audio
 from ..music.features import analyze_music
-from ..music.style import DEFAULT_WEIGHTS, StyleModel
 
 # Songs longer than this get a progress bar; shorter ones finish before a bar would be worth reading.
 PROGRESS_BAR_MIN_S = 60.0
@@ -23,7 +23,8 @@ PROGRESS_BAR_MIN_S = 60.0
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("song", help="audio file: wav, flac, ogg, mp3 or opus")
     p.add_argument("--json", metavar="PATH", help="also write beats, downbeats and per-window styles as JSON")
-    p.add_argument("--style-model", metavar="PATH", help="style checkpoint (default: the shipped one)")
+    p.add_argument("--style-model", metavar="PATH",
+                   help="style classifier .npz, or a training checkpoint .pt (needs torch); default: the shipped one")
     p.add_argument("--cache-dir", metavar="DIR",
                    help="feature cache (default: features/ in $DANCENET_CACHE or ~/.cache/dancenet)")
     p.add_argument("--no-cache", action="store_true", help="recompute the features even if cached")
@@ -36,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     duration = _duration_hint(song)
     if duration is None:
         load_audio(song)  # not readable as audio: raises the one-line error
-    model = StyleModel.load(args.style_model or DEFAULT_WEIGHTS)
+    model = load_style_model(args.style_model)
     bar = None
     if duration is not None and duration >= PROGRESS_BAR_MIN_S:
         bar = tqdm(total=100, desc="analysing", unit="%", leave=False, bar_format="{l_bar}{bar}| {elapsed}")

@@ -10,12 +10,10 @@ Trained by `training/footfix.py` (`dancenet train footfix`), which says how and 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from torch import nn
 
 from ..checkpoint import load_weights, save_weights
@@ -24,29 +22,10 @@ from ..errors import DanceNetError, first_line
 from ..representation import FeatureLayout, Normalizer
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .kinematics_torch import rotvec_to_matrix_torch
+from .runtime import FootChannels, floor_lift
 
 WEIGHTS = WEIGHTS_DIR / "footfix.pt"
 
-
-@dataclass(frozen=True)
-class FootChannels:
-    """Where the model's inputs and outputs sit in a frame's feature vector."""
-
-    lower: np.ndarray  # root channels + leg joint rotations (what gets corrected)
-    toes: np.ndarray  # toe-end positions
-    contacts: np.ndarray
-
-    @classmethod
-    def for_layout(cls, layout: FeatureLayout) -> FootChannels:
-        root = list(range(layout.root.start, layout.root.stop))
-        legs = [layout.rotations.start + 3 * (j - 1) + k for j in LOWER_BODY[1:] for k in range(3)]
-        toes = [layout.end_effectors.start + 3 * e + k for e in TOE_ENDS for k in range(3)]
-        contacts = list(range(layout.contacts.start, layout.contacts.stop))
-        return cls(np.array(root + legs), np.array(toes), np.array(contacts))
-
-    @property
-    def inputs(self) -> np.ndarray:
-        return np.concatenate([self.lower, self.toes, self.contacts])
 
 class FootConstraintModel(nn.Module):
     """3 temporal convs, kernel 3, dilations 1, 3, 9 (non-causal: the whole dance is known)."""
@@ -129,11 +108,8 @@ class FootFixer:
         return out
 
     def floor_lift(self, x: np.ndarray) -> np.ndarray:
-        """Root lift [T] (metres) that keeps both toe ends at or above the floor (y = 0): the dip, widened
-        and smoothed so the lift eases in and out rather than jerking, and never less than the dip."""
-        low = self.kin(torch.tensor(x[None, :, self.ch.lower]))[0, :, :, 1].min(-1).values.numpy()
-        need = np.maximum(0.0, -low)
-        return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
+        """Root lift [T] (metres) that keeps both toe ends at or above the floor (see `runtime.floor_lift`)."""
+        return floor_lift(self.kin(torch.tensor(x[None, :, self.ch.lower]))[0, :, :, 1].min(-1).values.numpy())
 
     def save(self, path: Path, info: dict) -> None:
         save_weights({"state_dict": self.model.state_dict(), "mean": self.norm.mean, "std": self.norm.std,

@@ -13,25 +13,42 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-import torch
 
 from ..progress import Progress
-from .dancenet import DanceNet
+from .numpy_nets import NumpyDanceNet
+
+if TYPE_CHECKING:
+    from .dancenet import DanceNet
 
 CHUNK = 250  # frames per compiled call, between which progress is reported and cancellation checked
 
 
-@torch.no_grad()
-def music_conditioning(model: DanceNet, music: np.ndarray, style: int) -> np.ndarray:
+def as_numpy(model: DanceNet | NumpyDanceNet) -> NumpyDanceNet:
+    """The network as arrays: a runtime one as it is, a torch one (training, evaluation) converted."""
+    return model if isinstance(model, NumpyDanceNet) else model.to_numpy()
+
+
+def _window_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style: np.ndarray) -> np.ndarray:
+    """Conditioning [B, T, C] of windows of music [B, T, F], by the numpy runtime or by the torch model."""
+    if isinstance(model, NumpyDanceNet):
+        return model.conditioning(music, style)
+    import torch  # a torch model: training and evaluation, where torch is installed
+
+    model.eval()
+    with torch.no_grad():
+        return model.conditioning(torch.from_numpy(music), torch.from_numpy(style)).transpose(1, 2).numpy()
+
+
+def music_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style: int) -> np.ndarray:
     """Conditioning [T, C] for a whole song: 8-s windows overlapping by 2 s, cross-faded into one code.
 
     Windows keep the encoder on the length it was trained on, so any song length works.
     """
     cfg = model.cfg
-    model.eval()
     t = len(music)
     win, ov = cfg.music_window, cfg.music_overlap
     hop = win - ov
@@ -44,9 +61,9 @@ def music_conditioning(model: DanceNet, music: np.ndarray, style: int) -> np.nda
         ramp[-ov:] = ramp[:ov][::-1].copy()
     for i in range(0, len(starts), 32):  # bounded memory for long songs
         chunk = starts[i : i + 32]
-        batch = torch.tensor(np.stack([music[s : s + win] for s in chunk]), dtype=torch.float32)
-        cond = model.conditioning(batch, torch.full((len(chunk),), style, dtype=torch.long))
-        for s, c in zip(chunk, cond.transpose(1, 2).numpy(), strict=True):
+        batch = np.stack([music[s : s + win] for s in chunk]).astype(np.float32)
+        cond = _window_conditioning(model, batch, np.full(len(chunk), style, dtype=np.int64))
+        for s, c in zip(chunk, cond, strict=True):
             total[s : s + len(c)] += c * ramp[:, None]
             weight[s : s + len(c)] += ramp[:, None]
     return (total / weight).astype(np.float32)
@@ -142,42 +159,42 @@ def _generate(  # a compiled kernel takes its arrays flat
 class CachedSampler:
     """One step per frame: each layer keeps a queue of its inputs' contributions to frame t + dilation."""
 
-    def __init__(self, model: DanceNet) -> None:
-        cfg = model.cfg
+    def __init__(self, model: DanceNet | NumpyDanceNet) -> None:
+        net = as_numpy(model)
+        cfg = net.cfg
         self.cfg = cfg
+        state = net.state
 
-        def w(conv: torch.nn.Module) -> np.ndarray:
-            return np.ascontiguousarray(conv.weight.detach().double().numpy()[:, :, -1].T, np.float32)
+        def w(name: str) -> np.ndarray:
+            return np.ascontiguousarray(state[f"{name}.weight"][:, :, -1].T, np.float32)
 
-        def wk(conv: torch.nn.Module, tap: int) -> np.ndarray:
-            return np.ascontiguousarray(conv.weight.detach().double().numpy()[:, :, tap].T)
+        def wk(name: str, tap: int) -> np.ndarray:
+            return np.ascontiguousarray(state[f"{name}.weight"][:, :, tap].T, np.float64)
 
-        def b(conv: torch.nn.Module) -> np.ndarray:
-            return conv.bias.detach().double().numpy()
+        def b(name: str, dtype: type = np.float64) -> np.ndarray:
+            return state[f"{name}.bias"].astype(dtype)
 
-        enc = model.motion_encoder
-        self.enc = [a for i in (0, 2, 4) for a in (w(enc[i]), b(enc[i]).astype(np.float32))]
+        layers = [f"layers.{i}" for i in range(cfg.layers)]
+        self.enc = [a for i in (0, 2, 4) for a in (w(f"motion_encoder.{i}"), b(f"motion_encoder.{i}", np.float32))]
         # Tap 1 of a kernel-2 dilated conv sees x[t], tap 0 sees x[t - d]. One matrix per layer gives both
         # this frame's filter|gate input and what this frame will contribute d frames later.
         self.w_np = np.stack([
-            np.concatenate([wk(layer.filter, 1), wk(layer.gate, 1), wk(layer.filter, 0), wk(layer.gate, 0)], 1)
-            for layer in model.layers
+            np.concatenate([wk(f"{n}.filter", 1), wk(f"{n}.gate", 1), wk(f"{n}.filter", 0), wk(f"{n}.gate", 0)], 1)
+            for n in layers
         ], dtype=np.float32)  # fmt: skip
         # All layers' conditioning convs as one matrix: one matrix product per song gives every frame's input.
-        self.cond_w = np.concatenate([wk(layer.cond, 0) for layer in model.layers], 1, dtype=np.float32)
+        self.cond_w = np.concatenate([wk(f"{n}.cond", 0) for n in layers], 1, dtype=np.float32)
         self.cond_b = np.concatenate(
-            [np.concatenate([b(layer.filter), b(layer.gate)]) + b(layer.cond) for layer in model.layers]
+            [np.concatenate([b(f"{n}.filter"), b(f"{n}.gate")]) + b(f"{n}.cond") for n in layers]
         ).astype(np.float32)
-        self.w_res = np.stack([wk(layer.res, 0) for layer in model.layers], dtype=np.float32)
-        self.b_res = np.stack([b(layer.res) for layer in model.layers]).astype(np.float32)
-        self.skip_w = np.concatenate([wk(layer.skip, 0) for layer in model.layers], 0, dtype=np.float32)
-        self.skip_b = np.sum([b(layer.skip) for layer in model.layers], axis=0).astype(np.float32)
-        dec = model.decoder
-        self.dec = [w(dec[1]), b(dec[1]).astype(np.float32), w(dec[3]), b(dec[3]).astype(np.float32)]
-        skip_in = getattr(model, "input_skip", None)
-        self.input_skip = [w(skip_in), b(skip_in).astype(np.float32)] if skip_in is not None else \
+        self.w_res = np.stack([wk(f"{n}.res", 0) for n in layers], dtype=np.float32)
+        self.b_res = np.stack([b(f"{n}.res") for n in layers]).astype(np.float32)
+        self.skip_w = np.concatenate([wk(f"{n}.skip", 0) for n in layers], 0, dtype=np.float32)
+        self.skip_b = np.sum([b(f"{n}.skip") for n in layers], axis=0).astype(np.float32)
+        self.dec = [w("decoder.1"), b("decoder.1", np.float32), w("decoder.3"), b("decoder.3", np.float32)]
+        self.input_skip = [w("input_skip"), b("input_skip", np.float32)] if cfg.input_skip else \
             [np.zeros((0, len(self.dec[3])), np.float32), np.zeros(len(self.dec[3]), np.float32)]
-        self.modelled = model.modelled.numpy().astype(np.bool_)
+        self.modelled = state["modelled"].astype(np.bool_)
         self.dilations = np.array(cfg.dilations, dtype=np.int64)
 
     def layer_conditioning(self, cond: np.ndarray) -> np.ndarray:
@@ -241,18 +258,18 @@ class CachedSampler:
         return frames.transpose(1, 0, 2), (outputs.transpose(1, 0, 2) if record_outputs else None)
 
 
-@torch.no_grad()
 def naive_run(model: DanceNet, first: np.ndarray, cond: np.ndarray, teacher: np.ndarray) -> np.ndarray:
     """The reference way: for each new frame, run the full stack over the last receptive-field frames.
 
     Feeds `teacher` frames [B, T, D] (sampling does not change the cost); returns the outputs [B, T, O].
     """
+    import torch  # the torch model itself: a benchmark and test reference, never run by generation
+
     rf = model.cfg.receptive_field
     bsz, t_total = len(first), len(cond)
     cond_t = torch.tensor(cond, dtype=torch.float32).T.unsqueeze(0).expand(bsz, -1, -1)
     frames = torch.tensor(teacher, dtype=torch.float32)
-    outs = []
-    for t in range(1, t_total):
-        lo = max(0, t - rf)
-        outs.append(model.forward_frames(frames[:, lo:t], cond_t[..., lo + 1 : t + 1])[:, -1])
+    with torch.no_grad():
+        outs = [model.forward_frames(frames[:, max(0, t - rf) : t], cond_t[..., max(0, t - rf) + 1 : t + 1])[:, -1]
+                for t in range(1, t_total)]
     return torch.stack([torch.zeros_like(outs[0])] + outs, 1).numpy()

@@ -1,5 +1,5 @@
-"""Musical style classifier (paper section 4.2) and its FC + Bi-LSTM baseline: inference (training is
-`training/style.py`).
+"""Musical style classifier (paper section 4.2) and its FC + Bi-LSTM baseline: inference without torch (the
+numpy network is `model/numpy_nets.py`, the torch one `style_torch.py`, training `training/style.py`).
 
 The classifier sees 30-second windows of a song's [T, 15] classifier input (10 fps; `classifier_input`) as a
 one-channel image:
@@ -18,13 +18,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import torch
-from torch import nn
+from scipy.special import softmax
 
-from ..checkpoint import read_checkpoint, save_weights
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError
 from .features import BEAT_COL, DOWNBEAT_COL, FEATURE_VERSION, FPS, N_FEATURES, MusicAnalysis
@@ -63,47 +60,6 @@ def classifier_input(analysis: MusicAnalysis) -> np.ndarray:
     x[:, BEAT_COL] = bump_track(analysis.beat_times * analysis.fps, len(x))
     x[:, DOWNBEAT_COL] = bump_track(analysis.downbeat_times * analysis.fps, len(x))
     return x
-
-class StyleConvNet(nn.Module):
-    """Temporal conv (kernel 2 along time, 1-16-24-32) + Bi-LSTM + FC: the paper's classifier."""
-
-    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT) -> None:
-        super().__init__()
-        layers: list[nn.Module] = []
-        for i, (cin, cout) in enumerate(((1, 16), (16, 24), (24, 32))):
-            stride = (2, 1) if i == 2 else (1, 1)
-            layers += [nn.Conv2d(cin, cout, (2, 1), stride=stride), nn.BatchNorm2d(cout), nn.ReLU()]
-        self.conv = nn.Sequential(*layers, nn.Dropout(dropout))
-        self.lstm = nn.LSTM(32 * N_FEATURES, hidden, batch_first=True, bidirectional=True)
-        self.fc = nn.Linear(2 * hidden, n_styles)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """[B, T, 15] features -> [B, n_styles] logits."""
-        h = self.conv(x.unsqueeze(1))  # [B, 32, T', 15]
-        h = h.permute(0, 2, 1, 3).flatten(2)  # [B, T', 32 * 15]
-        out, _ = self.lstm(h)
-        return self.fc(out.mean(dim=1))
-
-class StyleBaseline(nn.Module):
-    """The paper's baseline: the temporal convolutions replaced by a per-frame fully connected layer."""
-
-    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT) -> None:
-        super().__init__()
-        self.fc_in = nn.Sequential(nn.Linear(N_FEATURES, 32 * N_FEATURES), nn.ReLU(), nn.Dropout(dropout))
-        self.lstm = nn.LSTM(32 * N_FEATURES, hidden, batch_first=True, bidirectional=True)
-        self.fc = nn.Linear(2 * hidden, n_styles)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """[B, T, 15] features -> [B, n_styles] logits."""
-        out, _ = self.lstm(self.fc_in(x))
-        return self.fc(out.mean(dim=1))
-
-def build_net(arch: str, n_styles: int, **config: float) -> nn.Module:
-    if arch == "conv":
-        return StyleConvNet(n_styles, **config)  # type: ignore[arg-type]
-    if arch == "baseline":
-        return StyleBaseline(n_styles, **config)  # type: ignore[arg-type]
-    raise ValueError(f"unknown style architecture {arch!r}; expected one of {ARCHS}")
 
 def window_starts(num_frames: int, window: int, hop: int) -> np.ndarray:
     """Starts of windows every `hop` frames, plus one flush with the end so the tail counts too;
@@ -150,12 +106,11 @@ class StyleResult:
             ],
         }
 
-class StyleModel:
-    """A trained network plus what it needs to be used: style names, window and frame rate."""
+class StyleClassifier:
+    """What every style classifier shares, whatever runs its network (numpy at generation, `style_torch.py`'s
+    torch in training): style names, window, hop and frame rate, and a song classified window by window."""
 
-    def __init__(self, net: nn.Module, arch: str, styles: Sequence[str], config: dict, meta: dict | None = None):
-        self.net = net.eval()
-        self.arch = arch
+    def __init__(self, styles: Sequence[str], config: dict, meta: dict | None = None) -> None:
         self.styles = tuple(styles)
         self.config = dict(config)
         self.meta = dict(meta or {})
@@ -163,49 +118,21 @@ class StyleModel:
         self.window = int(round(float(self.meta.get("window_s", WINDOW_S)) * self.fps))
         self.hop = int(round(float(self.meta.get("hop_s", HOP_S)) * self.fps))
 
-    def eval_mode(self) -> StyleModel:
-        """Back to inference (dropout off, BatchNorm running statistics) after training steps."""
-        self.net.eval()
-        return self
+    def logits(self, x: np.ndarray) -> np.ndarray:
+        """[B, T, 15] classifier input -> [B, styles] logits."""
+        raise NotImplementedError
 
-    @classmethod
-    def load(cls, path: str | Path = DEFAULT_WEIGHTS) -> StyleModel:
-        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT, "style model", "dancenet train style")
-        net = build_net(ckpt["arch"], len(ckpt["styles"]), **ckpt["config"])
-        net.load_state_dict(ckpt["state_dict"])
-        return cls(net, ckpt["arch"], ckpt["styles"], ckpt["config"], ckpt["meta"])
+    def full_meta(self) -> dict:
+        """The metadata a saved classifier carries: windows and the feature version it was trained on."""
+        return {**self.meta, "fps": self.fps, "window_s": self.window / self.fps, "hop_s": self.hop / self.fps,
+                "feature_version": FEATURE_VERSION}
 
-    def save(self, path: str | Path) -> None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        meta = {
-            **self.meta,
-            "fps": self.fps,
-            "window_s": self.window / self.fps,
-            "hop_s": self.hop / self.fps,
-            "feature_version": FEATURE_VERSION,
-        }
-        save_weights(
-            {
-                "format": CHECKPOINT_FORMAT,
-                "arch": self.arch,
-                "styles": list(self.styles),
-                "config": self.config,
-                "meta": meta,
-                "state_dict": self.net.state_dict(),
-            },
-            path,
-        )
-
-    @torch.no_grad()
     def window_probabilities(self, features: np.ndarray, starts: np.ndarray, batch: int = 64) -> np.ndarray:
         """[W, S] softmax of the windows of `features` starting at `starts`."""
         length = min(self.window, len(features))
-        x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
-        out = []
-        for i in range(0, len(starts), batch):
-            xb = torch.stack([x[s : s + length] for s in starts[i : i + batch]])
-            out.append(torch.softmax(self.net(xb), dim=1))
-        return torch.cat(out).numpy()
+        x = np.asarray(features, np.float32)
+        return softmax(np.concatenate([self.logits(np.stack([x[s : s + length] for s in starts[i : i + batch]]))
+                                       for i in range(0, len(starts), batch)]), axis=1)
 
     def classify(self, analysis: MusicAnalysis) -> StyleResult:
         """Style of a whole song from its analysis (features and tracked beats): mean of the windows'

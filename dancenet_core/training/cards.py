@@ -17,8 +17,9 @@ from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
 from ..model.bundle import DanceNetBundle
 from ..music.features import FEATURE_VERSION
-from ..music.style import BASELINE_WEIGHTS, BUMP_SIGMA_FRAMES, DEFAULT_WEIGHTS, WINDOW_S, StyleModel
+from ..music.style import BASELINE_WEIGHTS, BUMP_SIGMA_FRAMES, DEFAULT_WEIGHTS, WINDOW_S
 from ..music.style import HOP_S as STYLE_HOP_S
+from ..music.style_torch import StyleModel
 from .motion_style import AUG_TEMPO as MOTION_AUG_TEMPO
 from .motion_style import Dance, load_dances
 from .style import AUG_CHROMA_DROP, AUG_GAIN, AUG_NOISE, VALIDATION, VALIDATION_WITH_TANGO

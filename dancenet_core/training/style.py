@@ -25,10 +25,9 @@ from ..music.style import (
     HIDDEN,
     HOP_S,
     WINDOW_S,
-    StyleModel,
-    build_net,
     bump_track,
 )
+from ..music.style_torch import StyleModel, build_net
 from ..series import stretch_frames
 from .configs import StyleSettings
 

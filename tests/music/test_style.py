@@ -19,6 +19,7 @@ from dancenet_core.data.dance_with_melody import read_manifest
 from dancenet_core.data.split import SPLIT_FILE
 from dancenet_core.errors import DanceNetError
 from dancenet_core.music import style as S
+from dancenet_core.music import style_torch as T
 from dancenet_core.music.audio import Audio, load_audio
 from dancenet_core.music.features import analyze_audio, analyze_music
 
@@ -31,19 +32,19 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 @pytest.mark.parametrize("arch", S.ARCHS)
 @pytest.mark.parametrize("frames", [300, 37])
 def test_forward_shapes(arch: str, frames: int) -> None:
-    net = S.build_net(arch, 3).eval()
+    net = T.build_net(arch, 3).eval()
     assert net(torch.randn(4, frames, 15)).shape == (4, 3)
 
 
 def test_conv_layers_follow_the_paper() -> None:
-    convs = [m for m in S.StyleConvNet(2).modules() if isinstance(m, nn.Conv2d)]
+    convs = [m for m in T.StyleConvNet(2).modules() if isinstance(m, nn.Conv2d)]
     assert [(c.in_channels, c.out_channels, c.kernel_size) for c in convs] == [
         (1, 16, (2, 1)),
         (16, 24, (2, 1)),
         (24, 32, (2, 1)),
     ]
-    assert len([m for m in S.StyleConvNet(2).modules() if isinstance(m, nn.BatchNorm2d)]) == 3
-    assert S.StyleConvNet(2).lstm.bidirectional
+    assert len([m for m in T.StyleConvNet(2).modules() if isinstance(m, nn.BatchNorm2d)]) == 3
+    assert T.StyleConvNet(2).lstm.bidirectional
 
 
 def test_window_starts() -> None:
@@ -62,7 +63,7 @@ class _MeanOfColumn(nn.Module):
 
 
 def test_song_style_is_mean_of_window_probabilities() -> None:
-    model = S.StyleModel(_MeanOfColumn(), "conv", ["slow", "fast"], {})
+    model = T.StyleModel(_MeanOfColumn(), "conv", ["slow", "fast"], {})
     feats = np.zeros((1000, 15), np.float32)
     feats[:500, 0] = 3.0
     feats[500:, 0] = -1.0
@@ -82,9 +83,9 @@ def test_song_style_is_mean_of_window_probabilities() -> None:
 def test_style_names_come_from_metadata(tmp_path: Path) -> None:
     for arch in S.ARCHS:
         config = {"hidden": 16, "dropout": 0.2}
-        model = S.StyleModel(S.build_net(arch, 2, **config), arch, ["polka", "tango"], config)
+        model = T.StyleModel(T.build_net(arch, 2, **config), arch, ["polka", "tango"], config)
         model.save(tmp_path / f"{arch}.pt")
-        loaded = S.StyleModel.load(tmp_path / f"{arch}.pt")
+        loaded = T.StyleModel.load(tmp_path / f"{arch}.pt")
         assert loaded.styles == ("polka", "tango")
         assert loaded.arch == arch
         song = analysis(np.random.default_rng(0).random((400, 15), dtype=np.float32))
@@ -94,13 +95,13 @@ def test_style_names_come_from_metadata(tmp_path: Path) -> None:
 
 def test_load_errors_are_user_facing(tmp_path: Path) -> None:
     with pytest.raises(DanceNetError, match="not found"):
-        S.StyleModel.load(tmp_path / "missing.pt")
+        T.StyleModel.load(tmp_path / "missing.pt")
     torch.save({"something": 1}, tmp_path / "other.pt")
     with pytest.raises(DanceNetError, match="not a dancenet style model"):
-        S.StyleModel.load(tmp_path / "other.pt")
+        T.StyleModel.load(tmp_path / "other.pt")
     (tmp_path / "broken.pt").write_bytes(b"PK\x03\x04 truncated")
     with pytest.raises(DanceNetError, match="cannot read the style model"):
-        S.StyleModel.load(tmp_path / "broken.pt")
+        T.StyleModel.load(tmp_path / "broken.pt")
 
 
 def test_bump_track_has_full_height_at_every_beat_whatever_the_grid() -> None:
@@ -148,7 +149,7 @@ def test_classifier_input_of_a_waltz_click_track() -> None:
 
 def test_shipped_models_load() -> None:
     for path, arch in ((S.DEFAULT_WEIGHTS, "conv"), (S.BASELINE_WEIGHTS, "baseline")):
-        model = S.StyleModel.load(path)
+        model = T.StyleModel.load(path)
         assert model.arch == arch
         assert len(model.styles) >= 2
         assert model.window == 300
@@ -171,7 +172,7 @@ def test_shipped_split_covers_the_data_and_model_styles() -> None:
     train_styles = {style_of[s] for s in split["train"]}
     assert {style_of[s] for s in split["test"]} == train_styles
     for path in (S.DEFAULT_WEIGHTS, S.BASELINE_WEIGHTS):
-        assert S.StyleModel.load(path).styles == tuple(sorted(train_styles))
+        assert T.StyleModel.load(path).styles == tuple(sorted(train_styles))
 
 
 @needs_data
@@ -182,7 +183,7 @@ def test_shipped_model_on_held_out_song() -> None:
     seq = min(split["test"], key=lambda s: rows[s].song_s)
     audio = load_audio(DATA / f"{seq}.ogg")
     audio.samples = audio.samples[: 40 * audio.sample_rate]
-    model = S.StyleModel.load()
+    model = T.StyleModel.load()
     result = model.classify(analyze_audio(audio))
     assert rows[seq].style in model.styles
     assert result.style in model.styles
@@ -193,7 +194,7 @@ def test_shipped_model_on_held_out_song() -> None:
 def test_shipped_model_calls_the_example_song_a_waltz(tmp_path: Path) -> None:
     """The demo's promise (README): the bundled example song, a synthesised waltz, is classified waltz."""
     analysis = analyze_music(REPO / "examples" / "example_song.ogg", cache_dir=tmp_path)
-    assert S.StyleModel.load().classify(analysis).style == "waltz"
+    assert T.StyleModel.load().classify(analysis).style == "waltz"
 
 
 def test_analyze_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -210,7 +211,7 @@ def test_analyze_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert data["features"]["shape"] == [80, 15]
     assert len(data["beat_times"]) >= 10
     assert data["tempo_bpm"] == pytest.approx(120, rel=0.05)
-    assert data["style"]["style"] in S.StyleModel.load().styles
+    assert data["style"]["style"] in T.StyleModel.load().styles
     assert data["style"]["windows"]
 
 

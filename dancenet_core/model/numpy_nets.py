@@ -1,0 +1,190 @@
+"""The small networks a Generate Dance runs, in numpy: DanceNet's music conditioning, the music style
+classifier and the Foot Constraint Model (its floor guard included), so that generation needs no torch.
+
+Each reads a state dict of plain arrays under torch's own names, with every BatchNorm already folded into
+the convolution before it (`fold_batchnorm`; `model/export.py` writes them). The per-frame stack of
+DanceNet runs in the numba sampler (`model/sampler.py`) from the same arrays.
+
+No numba here, on purpose: each network is a few large matrix products (BLAS already) and a Bi-LSTM of
+100-150 steps per batch of windows at about ten small numpy calls a step, some 10 ms for a whole song,
+less than numba's first compile of it would cost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.special import expit
+
+from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
+
+if TYPE_CHECKING:
+    from torch import nn
+
+    from .config import DanceNetConfig
+
+Arrays = Mapping[str, np.ndarray]
+BATCHNORM_EPS = 1e-5  # torch's default, which every BatchNorm here uses
+
+
+def fold_batchnorm(state: Arrays, pairs: Sequence[tuple[str, str]], eps: float = BATCHNORM_EPS
+                   ) -> dict[str, np.ndarray]:
+    """`state` with each (conv, norm) pair's BatchNorm (running statistics, as in inference) folded into the
+    conv's weight and bias, and the norm's entries dropped: inference then runs one operation, not two."""
+    out = dict(state)
+    for conv, norm in pairs:
+        scale = out.pop(f"{norm}.weight").astype(np.float64) / np.sqrt(out.pop(f"{norm}.running_var") + eps)
+        mean, shift = out.pop(f"{norm}.running_mean"), out.pop(f"{norm}.bias")
+        out.pop(f"{norm}.num_batches_tracked", None)
+        w = out[f"{conv}.weight"]
+        out[f"{conv}.weight"] = (w * scale.reshape(-1, *[1] * (w.ndim - 1))).astype(np.float32)
+        out[f"{conv}.bias"] = ((out[f"{conv}.bias"] - mean) * scale + shift).astype(np.float32)
+    return out
+
+
+def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
+    """A torch module's state dict as numpy arrays (BatchNorm's step counter left out: inference never reads it)."""
+    return {k: v.detach().cpu().numpy() for k, v in module.state_dict().items()
+            if not k.endswith("num_batches_tracked")}
+
+
+def linear(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
+    """A torch Linear (or a 1x1 Conv1d) over the last axis."""
+    w = state[f"{name}.weight"]
+    return x @ w.reshape(len(w), -1).T + state[f"{name}.bias"]
+
+
+def time_convs(x: np.ndarray, state: Arrays, names: Sequence[str], pad_end: bool) -> np.ndarray:
+    """Features [B, T, F] -> [B, T', C * F]: Conv2d layers with (2, 1) kernels along time over the features
+    as a one-channel image (BatchNorm folded), each followed by ReLU, the last with stride 2, flattened as
+    torch's `permute(0, 2, 1, 3)` does. `pad_end`: one zero frame appended before each layer (DanceNet's
+    encoder keeps its length; the style classifier's convs do not pad)."""
+    h = x[..., None]  # [B, T, F, C]
+    for k, name in enumerate(names):
+        w, b = state[f"{name}.weight"][..., 0], state[f"{name}.bias"]  # [C_out, C_in, 2]
+        if pad_end:
+            h = np.pad(h, ((0, 0), (0, 1), (0, 0), (0, 0)))
+        stride = 2 if k == len(names) - 1 else 1
+        taps = np.concatenate([h[:, :-1:stride], h[:, 1::stride]], axis=-1)  # [B, T', F, 2 C_in]
+        out = taps.reshape(-1, taps.shape[-1]) @ np.concatenate([w[..., 0].T, w[..., 1].T]) + b  # one 2-D product
+        h = np.maximum(out, 0.0).reshape(*taps.shape[:-1], len(b))
+    return h.transpose(0, 1, 3, 2).reshape(*h.shape[:2], -1)
+
+
+def bilstm(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
+    """A one-layer bidirectional torch LSTM (batch first, gates i, f, g, o): [B, T, I] -> [B, T, 2H].
+
+    The input's share of every gate is one matrix product for all steps; only the recurrence loops."""
+    out = []
+    for suffix in ("", "_reverse"):
+        w_hh = state[f"{name}.weight_hh_l0{suffix}"].T
+        gates_x = x @ state[f"{name}.weight_ih_l0{suffix}"].T + (
+            state[f"{name}.bias_ih_l0{suffix}"] + state[f"{name}.bias_hh_l0{suffix}"])
+        hidden = w_hh.shape[0]
+        h = np.zeros((len(x), hidden), x.dtype)
+        c = np.zeros_like(h)
+        seq = np.empty((*x.shape[:2], hidden), x.dtype)
+        steps = range(x.shape[1] - 1, -1, -1) if suffix else range(x.shape[1])
+        for t in steps:
+            i, f, g, o = np.split(gates_x[:, t] + h @ w_hh, 4, axis=1)
+            c = expit(f) * c + expit(i) * np.tanh(g)
+            h = expit(o) * np.tanh(c)
+            seq[:, t] = h
+        out.append(seq)
+    return np.concatenate(out, axis=-1)
+
+
+def interpolate_linear(x: np.ndarray, size: int) -> np.ndarray:
+    """[B, T, C] -> [B, size, C] as torch's `F.interpolate(mode="linear", align_corners=False)` along T."""
+    n = x.shape[1]
+    src = np.maximum((np.arange(size) + 0.5) * (n / size) - 0.5, 0.0)
+    i0 = np.minimum(src.astype(np.int64), n - 1)
+    lam = (src - i0)[:, None].astype(x.dtype)
+    return x[:, i0] * (1 - lam) + x[:, np.minimum(i0 + 1, n - 1)] * lam
+
+
+class NumpyDanceNet:
+    """DanceNet's generation-time weights as arrays: the music conditioning runs here, the gated stack in
+    `sampler.CachedSampler`, which reads `state` the same way it reads a torch model's."""
+
+    def __init__(self, cfg: DanceNetConfig, state: Arrays) -> None:
+        self.cfg = cfg
+        self.state = dict(state)
+
+    def conditioning(self, music: np.ndarray, style: np.ndarray) -> np.ndarray:
+        """music [B, T, music_dim] at the motion rate and style indices [B] -> music code + style embedding
+        per frame [B, T, code + style_dim] (torch's `DanceNet.conditioning`, transposed)."""
+        music = np.asarray(music, np.float32)
+        if self.cfg.music_encoder == "frame":
+            code = linear(music, self.state, "music_encoder.out")
+        else:
+            h = time_convs(music, self.state, [f"music_encoder.convs.{k}" for k in range(3)], pad_end=True)
+            h = linear(bilstm(h, self.state, "music_encoder.lstm"), self.state, "music_encoder.out")
+            code = interpolate_linear(h, music.shape[1])
+        emb = self.state["style_embedding.weight"][np.asarray(style)]
+        return np.concatenate([code, np.broadcast_to(emb[:, None], (*code.shape[:2], emb.shape[1]))], axis=-1)
+
+
+class NumpyStyleNet:
+    """The music style classifier's network ("conv": temporal conv + Bi-LSTM + FC, or the FC "baseline")."""
+
+    def __init__(self, arch: str, state: Arrays) -> None:
+        self.arch = arch
+        self.state = dict(state)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """[B, T, 15] classifier input -> [B, styles] logits."""
+        x = np.asarray(x, np.float32)
+        if self.arch == "baseline":
+            h = np.maximum(linear(x, self.state, "fc_in.0"), 0.0)
+        else:
+            h = time_convs(x, self.state, ["conv.0", "conv.3", "conv.6"], pad_end=False)
+        return linear(bilstm(h, self.state, "lstm").mean(axis=1), self.state, "fc")
+
+
+class NumpyFootNet:
+    """The Foot Constraint Model's three temporal convs (kernel 3, dilations 1, 3, 9, zero padded)."""
+
+    DILATIONS = (1, 3, 9)
+
+    def __init__(self, state: Arrays) -> None:
+        self.state = dict(state)
+        # Each conv as one [3 x in, out] matrix over its three taps side by side (contiguous, so BLAS runs it).
+        self.layers = [(np.concatenate(list(state[f"net.{2 * k}.weight"].transpose(2, 1, 0))),
+                        state[f"net.{2 * k}.bias"], d) for k, d in enumerate(self.DILATIONS)]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """[T, n_in] -> increment [T, n_out]."""
+        h = np.asarray(x, np.float32)
+        t = len(h)
+        for k, (w, b, d) in enumerate(self.layers):
+            p = np.pad(h, ((d, d), (0, 0)))
+            h = np.concatenate([p[:t], p[d : d + t], p[2 * d : 2 * d + t]], axis=1) @ w + b
+            if k < len(self.layers) - 1:
+                h = np.maximum(h, 0.0)
+        return h
+
+
+def toe_heights(lower: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """Heights [T, 2] of the toe ends above the floor from the unnormalised lower-body channels [T, L] (root
+    dx, y, dz, dyaw, swing x, swing z, then the leg joints' rotation vectors), where `ToeKinematics` puts
+    them: a turn about the vertical or a step along the floor moves no height, so only the root's swing and
+    height and the legs' rotations count."""
+
+    def matrices(rotvecs: np.ndarray) -> np.ndarray:
+        return Rotation.from_rotvec(rotvecs).as_matrix()
+
+    x = np.asarray(lower, np.float64)
+    rot = {0: matrices(np.stack([x[:, 4], np.zeros(len(x)), x[:, 5]], -1))}
+    pos = {0: np.zeros((len(x), 3))}
+    for i, j in enumerate(LOWER_BODY[1:]):
+        p = skeleton.parents[j]
+        pos[j] = pos[p] + rot[p] @ skeleton.offsets[j]
+        rot[j] = rot[p] @ matrices(x[:, 6 + 3 * i : 9 + 3 * i])
+    feet = skeleton.end_site_parents()[list(TOE_ENDS)]
+    ends = skeleton.end_site_offsets()[list(TOE_ENDS)]
+    toes = np.stack([pos[f][:, 1] + (rot[f] @ e)[:, 1] for f, e in zip(feet, ends, strict=True)], -1)
+    return toes + (x[:, 1] + skeleton.offsets[0][1])[:, None]

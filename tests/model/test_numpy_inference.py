@@ -1,0 +1,228 @@
+"""Generation without torch: each network's numpy forward equals its torch forward (random and real inputs, any
+DanceNet configuration), the shipped runtime files are exports of the shipped checkpoints, a whole dance is the
+torch path's dance, and a Generate Dance never imports torch."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from dancenet_core import generate
+from dancenet_core.model.bundle import DanceNetBundle
+from dancenet_core.model.config import DanceNetConfig
+from dancenet_core.model.dancenet import DanceNet
+from dancenet_core.model.export import bundle_to_runtime, fixer_to_runtime, style_to_runtime
+from dancenet_core.model.footfix import FootFixer
+from dancenet_core.model.numpy_nets import toe_heights
+from dancenet_core.model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
+from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
+from dancenet_core.music.features import FPS as MUSIC_FPS
+from dancenet_core.music.features import MusicAnalysis, analyze_music, music_at_frames
+from dancenet_core.music.style import classifier_input
+from dancenet_core.music.style_torch import StyleModel, build_net
+from dancenet_core.representation import Normalizer, encode
+from dancenet_core.skeleton import DEFAULT_SKELETON
+
+REPO = Path(__file__).resolve().parents[2]
+SONG = REPO / "examples" / "example_song.ogg"
+NETS = 1e-5  # numpy forward against torch forward
+# A whole dance against the torch path's, as joint positions (metres; rotation vectors near pi may flip). The
+# networks agree to about 1e-6, but sampling frame after frame amplifies that in places: on the example song one
+# of two takes drifts to 1.7e-4 m (the other stays at 3e-6), as far as the torch path itself moves when its
+# music encoder runs in float64 instead of float32 (1.4e-4 on the same take). Each network is held to 1e-5 above.
+DANCE = 1e-3
+
+
+def _randomise_batchnorm(module: torch.nn.Module, seed: int) -> None:
+    """Trained-looking BatchNorm statistics, so folding them into the convs is really tested."""
+    g = torch.Generator().manual_seed(seed)
+    for m in module.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            n = m.num_features
+            m.running_mean.copy_(torch.randn(n, generator=g))
+            m.running_var.copy_(torch.rand(n, generator=g) + 0.2)
+            m.weight.data.copy_(torch.randn(n, generator=g))
+            m.bias.data.copy_(torch.randn(n, generator=g))
+
+
+def _torch_conditioning(model: DanceNet, music: np.ndarray, style: np.ndarray) -> np.ndarray:
+    with torch.no_grad():
+        return model.conditioning(torch.from_numpy(music), torch.from_numpy(style)).transpose(1, 2).numpy()
+
+
+@pytest.fixture(scope="module")
+def shipped() -> tuple[DanceNetBundle, StyleModel, FootFixer]:
+    return DanceNetBundle.load(), StyleModel.load(), FootFixer.load()
+
+
+@pytest.fixture(scope="module")
+def analysis() -> MusicAnalysis:
+    return analyze_music(SONG)
+
+
+@pytest.mark.parametrize("options", [
+    {"mixtures": 3, "input_skip": True},
+    {"residual_output": True},
+    {"music_encoder": "frame"},
+    {"music_dim": 80, "music_features": "mel", "mixtures": 2},
+])
+def test_any_dancenet_config_runs_from_arrays(options: dict, tmp_path: Path) -> None:
+    """Conditioning (random music) to 1e-5, and the cached sampler from the saved arrays gives the torch
+    model's dance, with kept frames (`prefix`) too."""
+    torch.manual_seed(0)
+    cfg = DanceNetConfig(motion_dim=12, continuous_dim=10, styles=["a", "b"], motion_channels=32,
+                         residual_channels=16, skip_channels=32, music_window=40, music_overlap=10, **options)
+    model = DanceNet(cfg)
+    _randomise_batchnorm(model, 1)
+    for p in (model.input_skip.parameters() if model.input_skip is not None else []):
+        torch.nn.init.normal_(p, std=0.3)  # trained weights, not the zeros it starts from
+    model.eval()
+    rng = np.random.default_rng(0)
+    music = rng.normal(size=(3, 40, cfg.music_dim)).astype(np.float32)
+    style = np.array([0, 1, 1])
+    np.testing.assert_allclose(model.to_numpy().conditioning(music, style),
+                               _torch_conditioning(model, music, style), atol=NETS, rtol=0)
+
+    norm = Normalizer(np.zeros(12, np.float32), np.ones(12, np.float32), np.zeros(12, bool))
+    bundle = DanceNetBundle(model, norm, DEFAULT_SKELETON, {"a": rng.normal(size=(2, 12))})
+    bundle_to_runtime(bundle).save(tmp_path / "dancenet.npz")
+    runtime = RuntimeBundle.load(tmp_path / "dancenet.npz")
+    song = rng.normal(size=(130, cfg.music_dim)).astype(np.float32)
+    conds = [music_conditioning(m, song, 1) for m in (model, runtime.model)]
+    np.testing.assert_allclose(conds[1], conds[0], atol=NETS, rtol=0)
+    prefix = rng.normal(size=(2, 30, 12)).astype(np.float32)
+    dances = [CachedSampler(m).run(prefix[:, 0], conds[0], Sampling(0.5, np.random.default_rng(3)), prefix=prefix)[0]
+              for m in (model, runtime.model)]
+    np.testing.assert_array_equal(dances[1], dances[0])
+    np.testing.assert_array_equal(dances[1][:, :30], prefix)
+
+
+def test_shipped_runtime_files_are_exports_of_the_checkpoints(shipped: tuple) -> None:
+    """What generation loads is what training made: re-export the shipped checkpoints and compare (a stale
+    .npz after new weights fails here: run `python -m dancenet_core.model.export`)."""
+    bundle, style, fixer = shipped
+    runtime = RuntimeBundle.load()
+    assert runtime.model.cfg == bundle.model.cfg
+    fresh = bundle_to_runtime(bundle)
+    for got, want in ((runtime.model.state, fresh.model.state), (RuntimeStyleModel.load().net.state,
+                      style_to_runtime(style).net.state), (RuntimeFootFixer.load().net.state,
+                      fixer_to_runtime(fixer).net.state)):
+        assert got.keys() == want.keys()
+        for k in want:
+            np.testing.assert_array_equal(got[k], want[k], err_msg=k)
+    for s in bundle.styles:
+        np.testing.assert_array_equal(runtime.start_frames[s], bundle.start_frames[s])
+    np.testing.assert_array_equal(runtime.normalizer.std, bundle.normalizer.std)
+
+
+def test_shipped_music_encoder_on_random_and_real_music(shipped: tuple, analysis: MusicAnalysis) -> None:
+    bundle = shipped[0]
+    model, runtime = bundle.model, RuntimeBundle.load().model
+    cfg = model.cfg
+    rng = np.random.default_rng(1)
+    music = rng.normal(size=(4, cfg.music_window, cfg.music_dim)).astype(np.float32)
+    style = rng.integers(len(cfg.styles), size=4)
+    np.testing.assert_allclose(runtime.conditioning(music, style), _torch_conditioning(model, music, style),
+                               atol=NETS, rtol=0)
+    n = int(analysis.duration_s * cfg.fps)
+    song = music_at_frames(analysis.features, MUSIC_FPS, np.arange(n) / cfg.fps)
+    for s in range(len(cfg.styles)):
+        np.testing.assert_allclose(music_conditioning(runtime, song, s), music_conditioning(model, song, s),
+                                   atol=NETS, rtol=0)
+
+
+@pytest.mark.parametrize("arch", ["conv", "baseline"])
+def test_style_networks_on_random_input(arch: str) -> None:
+    torch.manual_seed(2)
+    model = StyleModel(build_net(arch, 4), arch, ["a", "b", "c", "d"], {})
+    _randomise_batchnorm(model.net, 3)
+    model.eval_mode()
+    x = np.random.default_rng(2).normal(size=(5, 300, 15)).astype(np.float32)
+    with torch.no_grad():
+        want = model.net(torch.from_numpy(x)).numpy()
+    np.testing.assert_allclose(style_to_runtime(model).net(x), want, atol=NETS, rtol=0)
+
+
+def test_shipped_style_classifier_on_real_music(shipped: tuple, analysis: MusicAnalysis) -> None:
+    torch_model, runtime = shipped[1], RuntimeStyleModel.load()
+    x = classifier_input(analysis)[None, : torch_model.window]
+    with torch.no_grad():
+        want = torch_model.net(torch.from_numpy(x)).numpy()
+    np.testing.assert_allclose(runtime.net(x), want, atol=NETS, rtol=0)
+    a, b = runtime.classify(analysis), torch_model.classify(analysis)
+    assert a.styles == b.styles
+    np.testing.assert_allclose(a.window_probabilities, b.window_probabilities, atol=NETS, rtol=0)
+
+
+def test_foot_model_and_floor_guard(shipped: tuple, analysis: MusicAnalysis) -> None:
+    """Random frames and a real dance (the shipped model's, to the example song): the increment, the toe heights
+    the floor guard reads and the whole clean-up equal torch's."""
+    fixer, runtime = shipped[2], RuntimeFootFixer.load()
+    ch = fixer.ch
+    rng = np.random.default_rng(4)
+    random = fixer.norm.denormalize(rng.normal(size=(300, len(fixer.norm.mean))).astype(np.float32))
+    dance = generate.generate_dance(SONG, seed=5, footfix=False, end_s=20.0)
+    real = np.concatenate([encode(m) for m in dance.motions])
+    for feats in (random, real):
+        x = fixer.norm.normalize(feats)
+        with torch.no_grad():
+            inc = fixer.model(torch.from_numpy(x[None, :, ch.inputs]))[0].numpy()
+            heights = fixer.kin(torch.from_numpy(x[None, :, ch.lower]))[0, ..., 1].numpy()
+        np.testing.assert_allclose(runtime.net(x[:, ch.inputs]), inc, atol=NETS, rtol=0)
+        lower = x[:, ch.lower] * fixer.norm.std[ch.lower] + fixer.norm.mean[ch.lower]
+        np.testing.assert_allclose(toe_heights(lower, fixer.skeleton), heights, atol=NETS, rtol=0)
+        np.testing.assert_allclose(runtime(feats), fixer(feats), atol=NETS, rtol=0)
+
+
+@pytest.fixture
+def torch_path(monkeypatch: pytest.MonkeyPatch, shipped: tuple) -> None:
+    """generate_dance as before this runtime: the torch networks of the shipped checkpoints."""
+    bundle, style, fixer = shipped
+    monkeypatch.setattr(generate, "load_bundle", lambda path=None: bundle)
+    monkeypatch.setattr(generate, "load_style_model", lambda path=None: style)
+    monkeypatch.setattr(generate, "foot_fixer", lambda: fixer)
+
+
+def _dances(**kwargs: object) -> generate.GenerationResult:
+    return generate.generate_dance(SONG, seed=11, takes=2, **kwargs)
+
+
+def test_generate_dance_equals_the_torch_path(request: pytest.FixtureRequest) -> None:
+    """The whole Generate Dance (style chosen by the classifier, music encoder, sampler, foot clean-up), and the
+    same kept dance continued from its 10th second, against the torch networks: same seed, same dance."""
+    ours = _dances()
+    ours_continued = _dances(continue_from=ours.motions[0], at_s=10.0)
+    request.getfixturevalue("torch_path")
+    theirs = _dances()
+    theirs_continued = _dances(continue_from=ours.motions[0], at_s=10.0)
+    for a, b in ((ours, theirs), (ours_continued, theirs_continued)):
+        assert a.style == b.style
+        for s in a.style_probabilities:
+            assert a.style_probabilities[s] == pytest.approx(b.style_probabilities[s], abs=NETS)
+        for ma, mb, ca, cb in zip(a.motions, b.motions, a.contacts, b.contacts, strict=True):
+            np.testing.assert_allclose(ma.positions(), mb.positions(), atol=DANCE, rtol=0)
+            np.testing.assert_array_equal(ca, cb)
+
+
+def test_generation_imports_no_torch(tmp_path: Path) -> None:
+    """A Generate Dance (and a continued one) in a fresh interpreter, with the modules the add-on uses: torch is
+    never imported."""
+    code = (
+        "import sys\n"
+        "from dancenet_core import kinematics, motion, rootmotion, bvh\n"
+        "from dancenet_core.generate import available_styles, generate_dance\n"
+        f"r = generate_dance({str(SONG)!r}, seed=1, end_s=12.0)\n"
+        f"generate_dance({str(SONG)!r}, seed=2, end_s=12.0, continue_from=r.motions[0], at_s=4.0)\n"
+        "assert available_styles()\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'torch')[:3])\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO,
+                         env=os.environ | {"PYTHONPATH": str(REPO)}, check=False)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "[]"
