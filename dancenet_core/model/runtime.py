@@ -32,10 +32,20 @@ FOOTFIX_RUNTIME = WEIGHTS_DIR / "footfix.npz"
 META = "meta"  # the entry holding a file's JSON metadata, as a 0-d string array
 
 
+def _plain(value: object) -> object:
+    """numpy numbers and arrays, and paths, in metadata (e.g. training facts) as JSON data."""
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON data")
+
+
 def write_arrays(path: str | Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
     """Arrays under their names and `meta` as JSON, in one uncompressed `.npz` (loads fast), written atomically."""
+    text = json.dumps({"format": RUNTIME_FORMAT, **meta}, default=_plain)
     with atomic_open(path, "wb") as f:
-        np.savez(f, **{META: np.array(json.dumps({"format": RUNTIME_FORMAT, **meta}))}, **arrays)
+        np.savez(f, **{META: np.array(text)}, **arrays)
 
 
 def read_arrays(path: str | Path, what: str, hint: str) -> tuple[dict[str, np.ndarray], dict]:

@@ -26,6 +26,8 @@ from ..data.split import load_split
 from ..data.windows import WindowSampler
 from ..environment import default_data_dir
 from ..model.bundle import DanceNetBundle
+from ..model.dancenet import DanceNet
+from ..model.export import bundle_to_runtime
 from ..model.variants import build_model, music_features
 from ..representation import FeatureLayout, Normalizer
 from .configs import TrainSettings
@@ -252,6 +254,8 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         final = bundle()
         final.info |= held_out_loss()
         final.save(out / "dancenet.pt")
+        if isinstance(final.model, DanceNet):  # what generation runs, without torch
+            bundle_to_runtime(final).save(out / "dancenet.npz")
         log.write(json.dumps({"step": step, "minutes": round(elapsed / 60, 2), "done": True,
                               **held_out_loss()}) + "\n")
         log.close()

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -40,6 +41,7 @@ from ..environment import default_data_dir
 from ..evaluation.metrics import CONTACT_TOE_M
 from ..generate import DEFAULT_TEMPERATURE, sample_dance
 from ..model.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from ..model.export import fixer_to_runtime
 from ..model.footfix import FootChannels, FootConstraintModel, FootFixer, ToeKinematics
 from ..model.sampler import Sampling, music_conditioning
 from ..representation import FeatureLayout, Normalizer
@@ -215,5 +217,7 @@ def train_footfix(args: FootfixSettings) -> dict:
             "dancenet_dances": len(dances), "dancenet_generation_seconds": generation_seconds,
             "contact_weights": {k: v for k, v in vars(contact).items() if k.endswith("_weight")},
             "train_sequences": sorted(q.seq for q in train_pairs)}
-    FootFixer(ours, norm, layout, bundle.skeleton).save(args.out, info)
+    fixer = FootFixer(ours, norm, layout, bundle.skeleton)
+    fixer.save(args.out, info)
+    fixer_to_runtime(fixer).save(Path(args.out).with_suffix(".npz"))  # what generation runs, without torch
     return info

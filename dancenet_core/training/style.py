@@ -17,6 +17,7 @@ from ..data.split import SPLIT_FILE, load_or_make_split, validation_songs
 from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
+from ..model.export import style_to_runtime
 from ..music.features import BEAT_COL, CHROMA_COLS, DOWNBEAT_COL, FPS, ONSET_COL, MusicAnalysis, analyze_music
 from ..music.style import (
     BASELINE_WEIGHTS,
@@ -235,5 +236,8 @@ def train_style(settings: StyleSettings, log: Callable[[str], None] = print) -> 
             "threads": settings.threads,
             "metrics": metrics,
         }
-        model.save(out_dir / {"conv": DEFAULT_WEIGHTS, "baseline": BASELINE_WEIGHTS}[arch].name)
+        path = out_dir / {"conv": DEFAULT_WEIGHTS, "baseline": BASELINE_WEIGHTS}[arch].name
+        model.save(path)
+        if arch == "conv":  # what generation runs, without torch
+            style_to_runtime(model).save(path.with_suffix(".npz"))
     return results

@@ -73,6 +73,14 @@ def click_song(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+def test_training_writes_what_generation_runs(tiny_weights: Path, click_song: Path) -> None:
+    """Beside its checkpoint, training writes the plain arrays generation runs without torch: the same dance."""
+    kw = dict(style="waltz", seed=3, footfix=False)
+    a = generate_dance(click_song, weights=str(tiny_weights.with_suffix(".npz")), **kw)
+    b = generate_dance(click_song, weights=str(tiny_weights), **kw)
+    np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)
+
+
 def test_bundle_round_trip(tiny_weights: Path) -> None:
     b = DanceNetBundle.load(tiny_weights)
     assert b.styles == ["rumba", "waltz"]  # read from the weights, not hard-coded
