@@ -34,8 +34,8 @@ SONG = REPO / "examples" / "example_song.ogg"
 NETS = 1e-5  # numpy forward against torch forward
 # A whole dance against the torch path's, as joint positions (metres; rotation vectors near pi may flip). The
 # networks agree to about 1e-6, but sampling frame after frame amplifies that in places: on the example song one
-# of two takes drifts to 1.7e-4 m (the other stays at 3e-6), as far as the torch path itself moves when its
-# music encoder runs in float64 instead of float32 (1.4e-4 on the same take). Each network is held to 1e-5 above.
+# of two takes drifts to 1.2e-4-1.7e-4 m (the other stays at 3e-6), as far as the torch path itself moves when
+# its music encoder runs in float64 instead of float32 (1.4e-4 on that take). Each network is held to 1e-5 above.
 DANCE = 1e-3
 
 
