@@ -57,17 +57,19 @@ def linear(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
     return x @ w.reshape(len(w), -1).T + state[f"{name}.bias"]
 
 
-def time_convs(x: np.ndarray, state: Arrays, names: Sequence[str], pad_end: bool) -> np.ndarray:
+def time_convs(x: np.ndarray, state: Arrays, names: Sequence[str], pad_end: bool, last_stride: int = 2
+               ) -> np.ndarray:
     """Features [B, T, F] -> [B, T', C * F]: Conv2d layers with (2, 1) kernels along time over the features
     as a one-channel image (BatchNorm folded), each followed by ReLU, the last with stride 2, flattened as
     torch's `permute(0, 2, 1, 3)` does. `pad_end`: one zero frame appended before each layer (DanceNet's
-    encoder keeps its length; the style classifier's convs do not pad)."""
+    encoder keeps its length; the style classifier's convs do not pad). `last_stride` 1 gives the last layer
+    at every frame (windows of a song then take every other one)."""
     h = x[..., None]  # [B, T, F, C]
     for k, name in enumerate(names):
         w, b = state[f"{name}.weight"][..., 0], state[f"{name}.bias"]  # [C_out, C_in, 2]
-        last = k == len(names) - 1
+        stride = last_stride if k == len(names) - 1 else 1
         # Output t reads frames t (first tap) and t + 1 (second tap); each tap is one 2-D product (BLAS).
-        first, second = (h[:, ::2], h[:, 1::2]) if last else (h, h[:, 1:])
+        first, second = h[:, ::stride], h[:, 1::stride]
         out = _channels(first, w[..., 0])
         out[:, : second.shape[1]] += _channels(second, w[..., 1])
         if not pad_end:  # no zero frame after the last: the last output would lack its second tap
@@ -84,20 +86,27 @@ def _channels(h: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def bilstm(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
-    """A one-layer bidirectional torch LSTM (batch first, gates i, f, g, o): [B, T, I] -> [B, T, 2H].
+    """A one-layer bidirectional torch LSTM (batch first, gates i, f, g, o): [B, T, I] -> [B, T, 2H]."""
+    return lstm_recurrence(lstm_input(x, state, name), state, name)
 
-    The input's share of every gate is one matrix product for all steps and both directions; the recurrence
-    then runs both directions in the same loop (the backward one on time-reversed input), halving the steps."""
+
+def lstm_input(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
+    """The input's share of every gate of both directions, [..., 2, 4H]: one matrix product for all steps."""
     directions = ("", "_reverse")
     w_ih = np.concatenate([state[f"{name}.weight_ih_l0{d}"] for d in directions])
     bias = np.concatenate([state[f"{name}.bias_ih_l0{d}"] + state[f"{name}.bias_hh_l0{d}"] for d in directions])
-    w_hh = np.stack([state[f"{name}.weight_hh_l0{d}"].T for d in directions])  # [2, H, 4H]
+    return (x @ w_ih.T + bias).reshape(*x.shape[:-1], 2, -1)
+
+
+def lstm_recurrence(gates_x: np.ndarray, state: Arrays, name: str) -> np.ndarray:
+    """Hidden states [B, T, 2H] from `lstm_input`'s [B, T, 2, 4H]: both directions in the same loop (the
+    backward one on time-reversed input), halving the steps."""
+    w_hh = np.stack([state[f"{name}.weight_hh_l0{d}"].T for d in ("", "_reverse")])  # [2, H, 4H]
     hidden = w_hh.shape[1]
-    gates_x = (x @ w_ih.T + bias).reshape(*x.shape[:2], 2, 4 * hidden)
     gates_x = np.ascontiguousarray(np.stack([gates_x[:, :, 0], gates_x[:, ::-1, 1]]).transpose(2, 0, 1, 3))
-    h = np.zeros((2, len(x), hidden), x.dtype)  # [direction, B, H]
+    h = np.zeros((2, gates_x.shape[2], hidden), np.float32)  # [direction, B, H]
     c = np.zeros_like(h)
-    seq = np.empty((x.shape[1], *h.shape), x.dtype)
+    seq = np.empty((len(gates_x), *h.shape), np.float32)
     for t, gx in enumerate(gates_x):  # gx [2, B, 4H]
         gates = gx + h @ w_hh
         act = expit(gates)  # the g quarter is taken as tanh instead: one call rather than three
@@ -148,11 +157,25 @@ class NumpyStyleNet:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """[B, T, 15] classifier input -> [B, styles] logits."""
         x = np.asarray(x, np.float32)
+        return self._logits(lstm_input(self._frames(x, stride=2), self.state, "lstm"))
+
+    def windows(self, x: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
+        """Logits [W, styles] of the windows x[s : s + length] of one song's input [T, 15]. Windows overlap
+        (30 s every 5 s), so what is computed frame by frame (the convs, or the baseline's FC, and the LSTM's
+        input share) runs once over the song; only the recurrences run per window."""
+        step = 1 if self.arch == "baseline" else 2
+        frames = lstm_input(self._frames(np.asarray(x, np.float32)[None], stride=1), self.state, "lstm")[0]
+        count = length if step == 1 else (length - 4) // 2 + 1  # the convs' outputs of one window
+        return self._logits(frames[np.asarray(starts)[:, None] + step * np.arange(count)])
+
+    def _frames(self, x: np.ndarray, stride: int) -> np.ndarray:
+        """[B, T, 15] -> the per-frame layers' output [B, T', 32 x 15] (the last conv at `stride`)."""
         if self.arch == "baseline":
-            h = np.maximum(linear(x, self.state, "fc_in.0"), 0.0)
-        else:
-            h = time_convs(x, self.state, ["conv.0", "conv.3", "conv.6"], pad_end=False)
-        return linear(bilstm(h, self.state, "lstm").mean(axis=1), self.state, "fc")
+            return np.maximum(linear(x, self.state, "fc_in.0"), 0.0)
+        return time_convs(x, self.state, ["conv.0", "conv.3", "conv.6"], pad_end=False, last_stride=stride)
+
+    def _logits(self, gates_x: np.ndarray) -> np.ndarray:
+        return linear(lstm_recurrence(gates_x, self.state, "lstm").mean(axis=1), self.state, "fc")
 
 
 class NumpyFootNet:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+from scipy.special import softmax
 
 from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR
@@ -196,6 +197,10 @@ class RuntimeStyleModel(StyleClassifier):
 
     def logits(self, x: np.ndarray) -> np.ndarray:
         return self.net(x)
+
+    def window_probabilities(self, features: np.ndarray, starts: np.ndarray, batch: int = 64) -> np.ndarray:
+        """As `StyleClassifier.window_probabilities`, with the layers that overlapping windows share run once."""
+        return softmax(self.net.windows(features, starts, min(self.window, len(features))), axis=1)
 
     def save(self, path: str | Path) -> None:
         write_arrays(path, _prefixed("state", self.net.state), {

@@ -139,14 +139,21 @@ def test_shipped_music_encoder_on_random_and_real_music(shipped: tuple, analysis
 
 @pytest.mark.parametrize("arch", ["conv", "baseline"])
 def test_style_networks_on_random_input(arch: str) -> None:
+    """Windows one by one, and a song's overlapping windows at once (an odd last start, and a song shorter
+    than a window), against torch on each window."""
     torch.manual_seed(2)
     model = StyleModel(build_net(arch, 4), arch, ["a", "b", "c", "d"], {})
     _randomise_batchnorm(model.net, 3)
     model.eval_mode()
-    x = np.random.default_rng(2).normal(size=(5, 300, 15)).astype(np.float32)
-    with torch.no_grad():
-        want = model.net(torch.from_numpy(x)).numpy()
-    np.testing.assert_allclose(style_to_runtime(model).net(x), want, atol=NETS, rtol=0)
+    net = style_to_runtime(model).net
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(5, 300, 15)).astype(np.float32)
+    np.testing.assert_allclose(net(x), model.logits(x), atol=NETS, rtol=0)
+    song = rng.normal(size=(457, 15)).astype(np.float32)
+    for starts, length in ((np.array([0, 50, 100, 157]), 300), (np.array([0]), 120)):
+        windows = np.stack([song[s : s + length] for s in starts])
+        np.testing.assert_allclose(net.windows(song[: max(starts) + length], starts, length), model.logits(windows),
+                                   atol=NETS, rtol=0)
 
 
 def test_shipped_style_classifier_on_real_music(shipped: tuple, analysis: MusicAnalysis) -> None:
