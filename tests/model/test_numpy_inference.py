@@ -14,6 +14,7 @@ import pytest
 import torch
 
 from dancenet_core import generate
+from dancenet_core.errors import DanceNetError
 from dancenet_core.model.bundle import DanceNetBundle
 from dancenet_core.model.config import DanceNetConfig
 from dancenet_core.model.dancenet import DanceNet
@@ -233,3 +234,15 @@ def test_generation_imports_no_torch(tmp_path: Path) -> None:
                          env=os.environ | {"PYTHONPATH": str(REPO)}, check=False)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == "[]"
+
+
+def test_runtime_files_never_unpickle(tmp_path: Path) -> None:
+    """A runtime file holding a pickled object, random bytes or another kind of file is refused in one line."""
+    np.savez(tmp_path / "pickled.npz", meta=np.array(['{"format": "dancenet-runtime-1"}']),
+             evil=np.array([{"a": 1}], dtype=object))
+    (tmp_path / "random.npz").write_bytes(np.random.default_rng(0).bytes(1000))
+    RuntimeFootFixer.load().save(tmp_path / "footfix.npz")
+    for name, message in (("pickled", "cannot read"), ("random", "cannot read"), ("footfix", "not a DanceNet")):
+        with pytest.raises(DanceNetError, match=message) as e:
+            RuntimeBundle.load(tmp_path / f"{name}.npz")
+        assert "\n" not in str(e.value)
