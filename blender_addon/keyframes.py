@@ -117,7 +117,8 @@ def _floor_tracks(rest: np.ndarray, a: np.ndarray, o: np.ndarray, turn: np.ndarr
     floor point), so its pose is rest^-1 F rest."""
     t = len(yaw)
     f = np.broadcast_to(np.eye(4), (t, 4, 4)).copy()
-    f[:, :3, :3] = turn @ Rotation.from_euler("y", yaw).as_matrix() @ turn.T
+    # yaw as (t, 1): newer scipy reads a 1-D array for one axis as a single rotation
+    f[:, :3, :3] = turn @ Rotation.from_euler("y", yaw[:, None]).as_matrix() @ turn.T
     f[:, :3, 3] = floor @ a.T + o - f[:, :3, :3] @ o
     basis = np.linalg.inv(rest) @ f @ rest
     return _continuous_quaternions(basis[:, :3, :3]), basis[:, :3, 3]

@@ -1,9 +1,8 @@
-"""Operators: Generate Dance (non-blocking), cancel, exports, bone-map editing, rig, dependencies."""
+"""Operators: Generate Dance (non-blocking), cancel, exports, bone-map editing, rig."""
 
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +12,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, deps, export, pipeline, rig
+from . import bonemap, export, pipeline, rig
 
 _REDRAW_AREAS = frozenset({"VIEW_3D", "SEQUENCE_EDITOR", "PREFERENCES"})
 
@@ -337,57 +336,6 @@ class DANCENET_OT_add_rig(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class DANCENET_OT_install_dependencies(bpy.types.Operator):
-    """Download and install torch, scipy, madmom and the rest (pinned versions, ~300 MB) with pip"""
-
-    bl_idname = "dancenet.install_dependencies"
-    bl_label = "Install Dependencies"
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return not context.window_manager.dancenet.installing
-
-    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
-        target = deps.site_dir(create=True)
-        self._log_path = target.parent / "pip-install.log"
-        self._log: Any = self._log_path.open("w", encoding="utf-8")
-        try:
-            self._process = subprocess.Popen(
-                deps.pip_command(target), stdout=self._log, stderr=subprocess.STDOUT
-            )
-        except OSError as e:
-            self._log.close()
-            self.report({"ERROR"}, f"Cannot run pip: {e}")
-            return {"CANCELLED"}
-        self._target = target
-        context.window_manager.dancenet.installing = True
-        self._timer = context.window_manager.event_timer_add(0.5, window=context.window)
-        context.window_manager.modal_handler_add(self)
-        context.workspace.status_text_set("DanceNet: installing dependencies with pip…")
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
-        if event.type != "TIMER" or self._process.poll() is None:
-            return {"PASS_THROUGH"}
-        context.window_manager.event_timer_remove(self._timer)
-        context.window_manager.dancenet.installing = False
-        context.workspace.status_text_set(None)
-        self._log.close()
-        _redraw(context)
-        if self._process.returncode != 0:
-            lines = self._log_path.read_text(encoding="utf-8", errors="replace").strip().splitlines()
-            last = lines[-1] if lines else "no output"
-            self.report({"ERROR"}, f"pip failed ({last}); full log: {self._log_path}")
-            return {"CANCELLED"}
-        deps.finish_install(self._target)
-        still = deps.missing()
-        if still:
-            self.report({"ERROR"}, f"Installed, but still missing: {', '.join(still)}; log: {self._log_path}")
-            return {"CANCELLED"}
-        self.report({"INFO"}, "DanceNet dependencies installed")
-        return {"FINISHED"}
-
-
 CLASSES = (
     DANCENET_OT_generate,
     DANCENET_OT_continue,
@@ -399,5 +347,4 @@ CLASSES = (
     DANCENET_OT_fix_bone,
     DANCENET_OT_save_bone_map,
     DANCENET_OT_add_rig,
-    DANCENET_OT_install_dependencies,
 )

@@ -7,7 +7,7 @@ import bpy
 from dancenet_core.errors import DanceNetError
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import bonemap, deps, operators, pipeline
+from . import bonemap, operators, pipeline
 from .menus import DANCENET_MT_presets
 from .rigdef import REQUIRED_JOINTS
 
@@ -55,14 +55,6 @@ class _DanceNetPanel:
         layout = self.layout
         props = context.scene.dancenet
         runtime = context.window_manager.dancenet
-        missing = deps.missing()
-        if missing:
-            box = layout.box()
-            box.label(text=f"Missing: {', '.join(missing)}", icon="ERROR")
-            box.operator("dancenet.install_dependencies", icon="IMPORT")
-            if runtime.installing:
-                box.label(text="Installing… (Blender stays usable)", icon="SORTTIME")
-
         row = layout.row(align=True)
         row.menu("DANCENET_MT_presets", text=DANCENET_MT_presets.bl_label, icon="PRESET")
         row.operator("dancenet.preset_add", text="", icon="ADD")
@@ -119,7 +111,6 @@ class _DanceNetPanel:
         else:
             row = layout.row()
             row.scale_y = 1.5
-            row.enabled = not missing
             row.operator("dancenet.generate", icon="PLAY_SOUND")
             layout.operator("dancenet.continue_dance", icon="FF")
 

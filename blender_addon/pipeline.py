@@ -18,7 +18,7 @@ import bpy
 
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, deps, rig
+from . import bonemap, rig
 
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
 
@@ -47,8 +47,8 @@ _styles_cache: list[str] = []
 
 
 def available_styles() -> list[str]:
-    """The shipped model's styles, or [] while the model or the dependencies are missing."""
-    if not _styles_cache and not deps.missing():
+    """The shipped model's styles, or [] while the model is missing."""
+    if not _styles_cache:
         try:
             from dancenet_core.generate import available_styles as core_styles
 
@@ -195,12 +195,6 @@ def current_map(props: Any) -> bonemap.BoneMap:
 def prepare(scene: bpy.types.Scene) -> Plan:
     """Validate the scene's DanceNet settings into a Plan; raises DanceNetError for the user to read."""
     props = scene.dancenet
-    missing = deps.missing()
-    if missing:
-        raise DanceNetError(
-            f"Missing Python packages: {', '.join(missing)}. "
-            "Install them from the DanceNet add-on preferences"
-        )
     if props.music_source == "STRIP":
         strip = scene.sequence_editor.active_strip if scene.sequence_editor else None
         if strip is None:
@@ -221,7 +215,7 @@ def prepare(scene: bpy.types.Scene) -> Plan:
         if target is None or target.type != "ARMATURE":
             raise DanceNetError("No target armature: pick one in the DanceNet panel, or choose New Rig")
         placement.armature = target.name
-        from . import keyframes  # needs scipy (and the core's FK): importable once dependencies are in
+        from . import keyframes  # needs scipy (and the core's FK): loaded on first use
 
         placement.bone_map = _chosen_map(props)
         hips = resolve_map(target, placement.bone_map)[0]["pelvis"]  # fail now, not after minutes of generation
@@ -388,10 +382,6 @@ def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -
     if info is None:
         raise DanceNetError("Continue From Here needs a rig whose active action is a DanceNet take: "
                             "generate a dance first")
-    missing = deps.missing()
-    if missing:
-        raise DanceNetError(f"Missing Python packages: {', '.join(missing)}. Install them from the DanceNet "
-                            "add-on preferences")
     song = check_song(info["song"])
     fps = scene.render.fps / scene.render.fps_base
     first, last = (round(f) for f in action.frame_range)
@@ -432,7 +422,7 @@ def part_of_song(scene: bpy.types.Scene, strip: bpy.types.Strip | None, song_fra
     """(start, end) seconds of the song to dance: what the strip lets be heard (its trim and place on the
     timeline), within the panel's frames when "Part of the Song" is on. The end is None for a song with
     no strip yet and no chosen end (the whole song)."""
-    from dancenet_core.generate import MIN_PART_S  # late: the core needs the dependencies, checked by now
+    from dancenet_core.generate import MIN_PART_S  # late: loading the core's generator costs a second
 
     props = scene.dancenet
     fps = scene.render.fps / scene.render.fps_base
@@ -490,7 +480,7 @@ def _keep_users_action(target: bpy.types.Object) -> str | None:
 def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
     """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take."""
 
-    from . import keyframes  # needs scipy (the core's FK): importable only once dependencies are in
+    from . import keyframes  # needs scipy (the core's FK): loaded on first use
 
     scene = context.scene
     place, req = plan.placement, plan.request

@@ -151,7 +151,6 @@ class DanceNetRuntime(bpy.types.PropertyGroup):
     stage: StringProperty()
     progress: FloatProperty(min=0.0, max=1.0, subtype="FACTOR")
     cancel_requested: BoolProperty()
-    installing: BoolProperty()
 
 
 CLASSES = (DanceNetSettings, DanceNetRuntime)
@@ -161,7 +160,7 @@ CLASSES = (DanceNetSettings, DanceNetRuntime)
 def _reset_runtime(_file: str) -> None:
     """The window manager is saved with the file: a file saved mid-generation must not load as busy."""
     for wm in bpy.data.window_managers:
-        wm.dancenet.running = wm.dancenet.installing = wm.dancenet.cancel_requested = False
+        wm.dancenet.running = wm.dancenet.cancel_requested = False
 
 
 def register() -> None:

@@ -7,4 +7,10 @@ import os
 # one passive thread). It must be set before torch loads its OpenMP runtime, hence here.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+# numba reads its cache folder from the environment when it compiles; set before any of our @njit(cache=True)
+# functions is defined, so compiled code goes to the user's cache, never into the (maybe read-only) install.
+from .environment import cache_root
+
+os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_root() / "numba"))
+
 __version__ = "0.1.0"

@@ -115,7 +115,8 @@ class BvhData:
             r = Rotation.identity(self.num_frames)
             for c in chans:
                 if c.endswith("rotation"):
-                    r = r * Rotation.from_euler(c[0], self.values[:, cols[c]], degrees=True)
+                    # angles as (N, 1): newer scipy reads a 1-D array for one axis as a single rotation
+                    r = r * Rotation.from_euler(c[0], self.values[:, cols[c], None], degrees=True)
             rots.append(r)
         return rots
 

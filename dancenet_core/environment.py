@@ -1,6 +1,6 @@
 """Where things live and how much to run at once, as the environment decides: the shipped weights, the one
-cache folder (`$DANCENET_CACHE`), the shared data folder (`$DANCENET_DATA`) and worker processes
-(`$DANCENET_WORKERS`). One home, so the command line, the add-on and training never disagree."""
+cache folder (`$DANCENET_CACHE`, numba's compiled code inside it), the shared data folder (`$DANCENET_DATA`)
+and worker processes (`$DANCENET_WORKERS`). One home, so the command line, the add-on and training never disagree."""
 
 from __future__ import annotations
 
@@ -13,9 +13,22 @@ WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 
 
 def cache_root() -> Path:
-    """`$DANCENET_CACHE` if set, else ~/.cache/dancenet; each cache is a folder inside it."""
+    """`$DANCENET_CACHE` if set (the Blender add-on sets it to its extension's user folder), else `dancenet` in the
+    user's cache folder; each cache is a folder inside it."""
     env = os.environ.get("DANCENET_CACHE")
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "dancenet"
+    return Path(env).expanduser() if env else user_cache_dir() / "dancenet"
+
+
+def user_cache_dir() -> Path:
+    """Where the platform keeps a user's caches: %LOCALAPPDATA% on Windows, ~/Library/Caches on macOS,
+    $XDG_CACHE_HOME (an absolute path) or ~/.cache elsewhere; never the install folder, which may be read-only."""
+    if sys.platform == "win32":
+        local = os.environ.get("LOCALAPPDATA")
+        return Path(local) if local else Path.home() / "AppData" / "Local"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches"
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    return Path(xdg) if os.path.isabs(xdg) else Path.home() / ".cache"
 
 
 def default_data_dir() -> Path:

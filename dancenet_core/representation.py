@@ -77,7 +77,8 @@ def _yaw_and_tilt(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     q = Rotation.from_rotvec(root_rotvecs).as_quat()  # x, y, z, w
     yaw = np.unwrap(2.0 * np.arctan2(q[:, 1], q[:, 3]))
-    swing = (Rotation.from_euler("y", -yaw) * Rotation.from_quat(q)).as_rotvec()
+    # angles as (N, 1): newer scipy reads a 1-D array for one axis as a single rotation
+    swing = (Rotation.from_euler("y", -yaw[:, None]) * Rotation.from_quat(q)).as_rotvec()
     return yaw, swing
 
 
@@ -122,7 +123,7 @@ def encode(motion: Motion, floor: float | None = None) -> np.ndarray:
     delta = np.zeros((t, 3))
     delta[1:] = root[1:] - root[:-1]
     prev_yaw = np.concatenate([yaw[:1], yaw[:-1]])
-    local = Rotation.from_euler("y", -prev_yaw).apply(delta)
+    local = Rotation.from_euler("y", -prev_yaw[:, None]).apply(delta)
     feats[:, 0] = local[:, 0]
     feats[:, 1] = root[:, 1]
     feats[:, 2] = local[:, 2]
@@ -133,7 +134,7 @@ def encode(motion: Motion, floor: float | None = None) -> np.ndarray:
 
     _, _, ends = fk_numpy(s, motion.rotations, root, with_end_sites=True)
     rel = (ends - root[:, None, :]).reshape(-1, 3)
-    ends_local = Rotation.from_euler("y", -np.repeat(yaw, len(s.end_sites))).apply(rel)
+    ends_local = Rotation.from_euler("y", -np.repeat(yaw, len(s.end_sites))[:, None]).apply(rel)
     feats[:, layout.end_effectors] = ends_local.reshape(t, -1)
     feats[:, layout.contacts] = foot_contacts(ends[:, list(TOE_ENDS)], motion.fps, floor)
     return feats.astype(np.float32)
@@ -161,14 +162,14 @@ def decode(
     prev_yaw = np.concatenate([[start_yaw], yaw[:-1]])
     local = np.stack([f[:, 0], np.zeros(t), f[:, 2]], axis=-1)
     local[0] = 0.0
-    world_delta = Rotation.from_euler("y", prev_yaw).apply(local)
+    world_delta = Rotation.from_euler("y", prev_yaw[:, None]).apply(local)
     root = np.cumsum(world_delta, axis=0)
     root[:, 0] += start_xz[0]
     root[:, 2] += start_xz[1]
     root[:, 1] = f[:, 1]
 
     swing = np.stack([f[:, 4], np.zeros(t), f[:, 5]], axis=-1)
-    root_rot = (Rotation.from_euler("y", yaw) * Rotation.from_rotvec(swing)).as_rotvec()
+    root_rot = (Rotation.from_euler("y", yaw[:, None]) * Rotation.from_rotvec(swing)).as_rotvec()
     rots = np.concatenate([root_rot[:, None], f[:, layout.rotations].reshape(t, -1, 3)], axis=1)
     return Motion(rots, root, fps, skeleton)
 

@@ -63,7 +63,8 @@ def write_root_bone_bvh(path: str | Path, motion: Motion, rotation_order: str = 
     order = rotation_order.upper()
     t = motion.num_frames
     euler = Rotation.from_rotvec(local.rotations.reshape(-1, 3)).as_euler(order, degrees=True).reshape(t, -1, 3)
-    root_euler = Rotation.from_euler("y", yaw).as_euler(order, degrees=True)
+    # angles as (N, 1): newer scipy reads a 1-D array for one axis as a single rotation
+    root_euler = Rotation.from_euler("y", yaw[:, None]).as_euler(order, degrees=True)
     rot = tuple(f"{a}rotation" for a in order)
     pos = ("Xposition", "Yposition", "Zposition")
     names = (ROOT_BONE, *sk.names)

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# One-time setup: Debian packages, a Python 3.11 venv with the pinned stack, and the project itself.
+# One-time setup: Debian packages, a Python 3.11 venv with the pinned stack (constraints.txt), and the project
+# itself with its train, blender and dev extras.
 # A second run with nothing to do only compares a stamp and exits (seconds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 VENV=.venv
-STAMP_INPUTS=(requirements.txt scripts/setup.sh scripts/apt-packages.txt pyproject.toml)
+STAMP_INPUTS=(constraints.txt scripts/setup.sh scripts/apt-packages.txt pyproject.toml)
 STAMP_HASH=$(cat "${STAMP_INPUTS[@]}" | sha256sum | cut -c1-16)
 STAMP="$VENV/.setup-$STAMP_HASH"
 
@@ -35,7 +36,7 @@ if [[ ! -x "$VENV/bin/python" ]]; then
     echo "setup: creating $VENV with $PYTHON"
     "$PYTHON" -m venv "$VENV"
 fi
-PIP=("$VENV/bin/python" -m pip install -q --disable-pip-version-check)
+PIP=("$VENV/bin/python" -m pip install -q --disable-pip-version-check -c constraints.txt)
 
 # torch alone and first, the CPU build: otherwise pip resolves the CUDA build (several GB).
 if ! "$VENV/bin/python" -c "import torch, sys; sys.exit(torch.__version__.split('+')[0] != '2.13.0')" 2>/dev/null; then
@@ -43,11 +44,11 @@ if ! "$VENV/bin/python" -c "import torch, sys; sys.exit(torch.__version__.split(
     "${PIP[@]}" torch==2.13.0 2>&1 | grep -v "is ignored: it is neither" || true
 fi
 echo "setup: installing the pinned stack"
-"${PIP[@]}" -r requirements.txt 2>&1 | grep -v "is ignored: it is neither" || true
-# pyrender pins an old PyOpenGL; we use PyOpenGL 3.1.10, so install it without its dependencies.
+# pyrender pins an old PyOpenGL; we use PyOpenGL 3.1.10, so pyrender goes in without its dependencies and
+# what it imports is listed here.
+"${PIP[@]}" -e ".[train,blender,dev]" trimesh PyOpenGL six networkx Pillow imageio pyglet freetype-py 2>&1 \
+    | grep -v "is ignored: it is neither" || true
 "${PIP[@]}" --no-deps pyrender==0.1.45 2>&1 | grep -v "is ignored: it is neither" || true
-"${PIP[@]}" --no-deps -e . 2>&1 | grep -v "is ignored: it is neither" || true
-"$VENV/bin/python" scripts/madmom_dist_shim.py
 
 rm -f "$VENV"/.setup-*
 touch "$STAMP"

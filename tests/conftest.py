@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import torch
 from made_up import data_root
 
 
@@ -19,7 +18,10 @@ def shared_data() -> Path:
 
 @pytest.fixture
 def one_torch_thread() -> object:
-    """Two OpenMP threads on a busy two-core machine are many times slower than one."""
+    """Two OpenMP threads on a busy two-core machine are many times slower than one (torch imported here: the
+    add-on's tests also run where torch is not installed)."""
+    import torch
+
     n = torch.get_num_threads()
     torch.set_num_threads(1)
     yield

