@@ -50,7 +50,7 @@ def _files(top: Path) -> list[Path]:
     return sorted(p for p in found if not _SKIP_DIRS.intersection(p.relative_to(top).parts))
 
 
-def _project() -> dict:
+def project_metadata() -> dict:
     with (ROOT / "pyproject.toml").open("rb") as f:
         return tomllib.load(f)["project"]
 
@@ -80,7 +80,7 @@ def pins_for(python: str) -> list[str]:
 def dependency_wheels(platform: str, python: str) -> list[Path]:
     """The project's runtime dependencies (and theirs) as wheels for one platform and Python, numpy left out;
     downloaded once into .cache/wheels/<platform>-<python>/ and reused while the pins and dependencies match."""
-    requirements, pins = _project()["dependencies"], pins_for(python)
+    requirements, pins = project_metadata()["dependencies"], pins_for(python)
     folder = WHEEL_CACHE / f"{platform}-py{python}"
     key = hashlib.sha256("\n".join([*requirements, *pins, *PLATFORMS[platform]]).encode()).hexdigest()[:16]
     listing = folder / f".resolved-{key}"
@@ -124,7 +124,7 @@ def project_wheel(out_dir: Path) -> Path:
 def manifest_for(platform: str, wheels: list[str]) -> str:
     """blender_manifest.toml with the project's version, the one platform and its wheels."""
     manifest = (ADDON / "blender_manifest.toml").read_text(encoding="utf-8")
-    manifest, n = re.subn(r'(?m)^version = ".*"$', f'version = "{_project()["version"]}"', manifest)
+    manifest, n = re.subn(r'(?m)^version = ".*"$', f'version = "{project_metadata()["version"]}"', manifest)
     if n != 1 or "\n[permissions]" not in manifest:
         raise SystemExit("build_addon: blender_manifest.toml needs one `version = ...` line and a [permissions] table")
     listed = "".join(f'    "./wheels/{w}",\n' for w in wheels)
@@ -134,7 +134,7 @@ def manifest_for(platform: str, wheels: list[str]) -> str:
 
 def build(out_dir: Path = ROOT / "dist", platforms: list[str] | None = None) -> list[Path]:
     """Write one extension zip per platform (all of PLATFORMS by default) and return their paths."""
-    version = _project()["version"]
+    version = project_metadata()["version"]
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -70,7 +70,8 @@ def _serves(wheel: str, python: str, platform: str) -> bool:
 
 def test_every_zip_carries_wheels_for_its_platform_and_each_python(zips: dict[str, Path]) -> None:
     """Every dependency, for each supported Python, as a wheel for the zip's own platform; numpy is Blender's."""
-    needed = {_requirement_name(r) for r in build_addon._project()["dependencies"]} - build_addon.BUNDLED_WITH_BLENDER
+    needed = {_requirement_name(r) for r in build_addon.project_metadata()["dependencies"]}
+    needed -= build_addon.BUNDLED_WITH_BLENDER
     carried = {}
     for platform, path in zips.items():
         with zipfile.ZipFile(path) as z:
