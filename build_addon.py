@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -112,7 +113,9 @@ def distribution_of(wheel: str) -> str:
 
 
 def project_wheel(out_dir: Path) -> Path:
-    """This project (the core with its weights) as a pure-Python wheel, built by pip from pyproject.toml."""
+    """This project (the core with its weights) as a pure-Python wheel, built by pip from pyproject.toml. The
+    build folder goes first: setuptools packs whatever it holds, a module since deleted included."""
+    shutil.rmtree(ROOT / "build", ignore_errors=True)
     subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "-q", "--disable-pip-version-check", "--no-deps", "-w",
          str(out_dir), str(ROOT)],
