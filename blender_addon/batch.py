@@ -55,7 +55,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--out", type=Path, required=True, help="output folder (one subfolder per song)")
     p.add_argument("--style", default="auto", help="dance style, or auto (the classifier picks)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--temperature", type=float, default=0.1, help="0 = the most likely dance (default 0.1)")
+    p.add_argument("--temperature", type=float, default=1.0,  # the core's DEFAULT_TEMPERATURE
+                   help="1 = as the model learnt the dancers, lower = calmer (default 1.0)")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
     p.add_argument("--root-motion", choices=("travel", "in-place", "root-bone"), default="travel",
                    help="travel (as danced), in-place, or root-bone (a root bone carries path and heading)")

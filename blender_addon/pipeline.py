@@ -65,7 +65,7 @@ class GenerationRequest:
     song: Path
     style: str = "auto"
     seed: int = 0
-    temperature: float = 0.1  # the core's DEFAULT_TEMPERATURE
+    temperature: float = 1.0  # the core's DEFAULT_TEMPERATURE
     takes: int = 1
     footfix: bool = True
     start_s: float = 0.0  # the part of the song to dance, in the song's own seconds

@@ -56,8 +56,8 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         name="Seed", min=0, default=0, description="Another seed, another dance to the same song"
     )
     temperature: FloatProperty(
-        name="Temperature", min=0.0, max=3.0, soft_max=1.0, default=0.1,  # the core's DEFAULT_TEMPERATURE
-        description="0: the most likely dance. Higher: bolder, less predictable moves",
+        name="Temperature", min=0.0, max=3.0, soft_max=1.5, default=1.0,  # the core's DEFAULT_TEMPERATURE
+        description="1: as the model learnt the dancers. Lower: calmer, smaller moves; higher: bolder, wilder",
     )  # fmt: skip
     takes: IntProperty(
         name="Takes", min=1, max=8, default=1, description="Dances generated at once, one action each"

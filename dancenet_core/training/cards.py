@@ -335,7 +335,7 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         f"- {info.get('data')}; {info.get('train_minutes', 0):.1f} minutes of training motion "
         f"({len(info.get('train_sequences', []))} sequences), mirrored copies added (same music).",
         f"- Styles: {', '.join(cfg.styles)}. Left out: "
-        + ", ".join(f"{k} ({v})" for k, v in info.get("styles_left_out", {}).items()) + ".",
+        + (", ".join(f"{k} ({v})" for k, v in info.get("styles_left_out", {}).items()) or "none") + ".",
         "- Minutes of training motion per style: "
         + ", ".join(f"{k} {v:.1f}" for k, v in info.get("minutes_per_style", {}).items()) + ".",
         f"- Test sequences (never trained on): {', '.join(info.get('test_sequences', []))}.",

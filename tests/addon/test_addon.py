@@ -357,7 +357,7 @@ def test_panel_draws_every_setting(scene, addon, song, target):
         assert [w.value for w in shot.walk(root) if w.kind == "text"] == [str(song)]
         assert shown["Style"].value == "Auto (Hiphop)"
         assert shown["Hiphop 70%"].kind == "progress"
-        assert shown["Temperature"].value == "0.10"
+        assert shown["Temperature"].value == "1.00"
         assert shown["Foot Clean-up"].selected
         assert shown["Generate Dance"].enabled
         assert shown["Generate Dance"].kind == "operator"

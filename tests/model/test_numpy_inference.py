@@ -38,6 +38,10 @@ NETS = 1e-5  # numpy forward against torch forward
 # of two takes drifts to 1.2e-4-1.7e-4 m (the other stays at 3e-6), as far as the torch path itself moves when
 # its music encoder runs in float64 instead of float32 (1.4e-4 on that take). Each network is held to 1e-5 above.
 DANCE = 1e-3
+# The paths are compared at a low temperature, where the sampled dynamics pull nearby dances together. At the
+# default temperature (1.0) every frame adds the model's full variance and the dance is chaotic: the same 1e-6
+# differences grow to 3.4 cm over the example song (measured), as any two float orders of the same network would.
+PATH_TEMPERATURE = 0.1
 
 
 def _randomise_batchnorm(module: torch.nn.Module, seed: int) -> None:
@@ -198,7 +202,7 @@ def torch_path(monkeypatch: pytest.MonkeyPatch, shipped: tuple) -> None:
 
 
 def _dances(**kwargs: object) -> generate.GenerationResult:
-    return generate.generate_dance(SONG, seed=11, takes=2, **kwargs)
+    return generate.generate_dance(SONG, seed=11, takes=2, temperature=PATH_TEMPERATURE, **kwargs)
 
 
 def test_generate_dance_equals_the_torch_path(request: pytest.FixtureRequest) -> None:
