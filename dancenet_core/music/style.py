@@ -16,6 +16,7 @@ the tracked beats carry tempo and metre (3 beats a bar for waltz) intact. DanceN
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -106,7 +107,7 @@ class StyleResult:
             ],
         }
 
-class StyleClassifier:
+class StyleClassifier(ABC):
     """What every style classifier shares, whatever runs its network (numpy at generation, `style_torch.py`'s
     torch in training): style names, window, hop and frame rate, and a song classified window by window."""
 
@@ -118,9 +119,9 @@ class StyleClassifier:
         self.window = int(round(float(self.meta.get("window_s", WINDOW_S)) * self.fps))
         self.hop = int(round(float(self.meta.get("hop_s", HOP_S)) * self.fps))
 
+    @abstractmethod
     def logits(self, x: np.ndarray) -> np.ndarray:
         """[B, T, 15] classifier input -> [B, styles] logits."""
-        raise NotImplementedError
 
     def full_meta(self) -> dict:
         """The metadata a saved classifier carries: windows and the feature version it was trained on."""
