@@ -142,10 +142,12 @@ class DanceNet(nn.Module):
         return self.forward_frames(motion[:, :-1], cond[..., 1:], None if base is None else base[:, :-1])
 
     def to_numpy(self) -> NumpyDanceNet:
-        """These weights for the numpy runtime (generation without torch), the music encoder's BatchNorm folded."""
+        """These weights for the numpy runtime (generation without torch), the music encoder's BatchNorm folded
+        in float64 (the encoder runs in float64: `NumpyDanceNet.conditioning`)."""
         state = numpy_state(self)
         if self.cfg.music_encoder == "context":
-            state = fold_batchnorm(state, [(f"music_encoder.convs.{k}", f"music_encoder.norms.{k}") for k in range(3)])
+            state = fold_batchnorm(state, [(f"music_encoder.convs.{k}", f"music_encoder.norms.{k}") for k in range(3)],
+                                   np.float64)
         return NumpyDanceNet(self.cfg, state)
 
     def split(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -30,18 +30,23 @@ Arrays = Mapping[str, np.ndarray]
 BATCHNORM_EPS = 1e-5  # torch's default, which every BatchNorm here uses
 
 
-def fold_batchnorm(state: Arrays, pairs: Sequence[tuple[str, str]], eps: float = BATCHNORM_EPS
-                   ) -> dict[str, np.ndarray]:
+def fold_batchnorm(state: Arrays, pairs: Sequence[tuple[str, str]], dtype: type = np.float32,
+                   eps: float = BATCHNORM_EPS) -> dict[str, np.ndarray]:
     """`state` with each (conv, norm) pair's BatchNorm (running statistics, as in inference) folded into the
-    conv's weight and bias, and the norm's entries dropped: inference then runs one operation, not two."""
+    conv's weight and bias, and the norm's entries dropped: inference then runs one operation, not two.
+    `dtype` float64 keeps the folded values unrounded, for a network run in float64 (DanceNet's music encoder)."""
     out = dict(state)
+
+    def pop(name: str) -> np.ndarray:  # every step of the fold in float64, rounded (if at all) once at the end
+        return np.asarray(out.pop(name), np.float64)
+
     for conv, norm in pairs:
-        scale = out.pop(f"{norm}.weight").astype(np.float64) / np.sqrt(out.pop(f"{norm}.running_var") + eps)
-        mean, shift = out.pop(f"{norm}.running_mean"), out.pop(f"{norm}.bias")
+        scale = pop(f"{norm}.weight") / np.sqrt(pop(f"{norm}.running_var") + eps)
+        mean, shift = pop(f"{norm}.running_mean"), pop(f"{norm}.bias")
         out.pop(f"{norm}.num_batches_tracked", None)
-        w = out[f"{conv}.weight"]
-        out[f"{conv}.weight"] = (w * scale.reshape(-1, *[1] * (w.ndim - 1))).astype(np.float32)
-        out[f"{conv}.bias"] = ((out[f"{conv}.bias"] - mean) * scale + shift).astype(np.float32)
+        w, b = pop(f"{conv}.weight"), pop(f"{conv}.bias")
+        out[f"{conv}.weight"] = (w * scale.reshape(-1, *[1] * (w.ndim - 1))).astype(dtype)
+        out[f"{conv}.bias"] = ((b - mean) * scale + shift).astype(dtype)
     return out
 
 
@@ -104,9 +109,9 @@ def lstm_recurrence(gates_x: np.ndarray, state: Arrays, name: str) -> np.ndarray
     w_hh = np.stack([state[f"{name}.weight_hh_l0{d}"].T for d in ("", "_reverse")])  # [2, H, 4H]
     hidden = w_hh.shape[1]
     gates_x = np.ascontiguousarray(np.stack([gates_x[:, :, 0], gates_x[:, ::-1, 1]]).transpose(2, 0, 1, 3))
-    h = np.zeros((2, gates_x.shape[2], hidden), np.float32)  # [direction, B, H]
+    h = np.zeros((2, gates_x.shape[2], hidden), gates_x.dtype)  # [direction, B, H]
     c = np.zeros_like(h)
-    seq = np.empty((len(gates_x), *h.shape), np.float32)
+    seq = np.empty((len(gates_x), *h.shape), gates_x.dtype)
     for t, gx in enumerate(gates_x):  # gx [2, B, 4H]
         gates = gx + h @ w_hh
         act = expit(gates)  # the g quarter is taken as tanh instead: one call rather than three
@@ -132,18 +137,23 @@ class NumpyDanceNet:
     def __init__(self, cfg: DanceNetConfig, state: Arrays) -> None:
         self.cfg = cfg
         self.state = dict(state)
+        # The conditioning's weights in float64, where it runs (see `conditioning`), converted once.
+        self.encoder = {k: np.asarray(v, np.float64) for k, v in self.state.items()
+                        if k.startswith(("music_encoder.", "style_embedding."))}
 
     def conditioning(self, music: np.ndarray, style: np.ndarray) -> np.ndarray:
         """music [B, T, music_dim] at the motion rate and style indices [B] -> music code + style embedding
-        per frame [B, T, code + style_dim] (torch's `DanceNet.conditioning`, transposed)."""
-        music = np.asarray(music, np.float32)
+        per frame [B, T, code + style_dim] (torch's `DanceNet.conditioning`, transposed), in float64: the
+        sampler turns a float32 rounding of the code into centimetres of dance, so only a code computed in
+        float64 and rounded once (`sampler.music_conditioning`) is the same whichever library computes it."""
+        music, state = np.asarray(music, np.float64), self.encoder
         if self.cfg.music_encoder == "frame":
-            code = linear(music, self.state, "music_encoder.out")
+            code = linear(music, state, "music_encoder.out")
         else:
-            h = time_convs(music, self.state, [f"music_encoder.convs.{k}" for k in range(3)], pad_end=True)
-            h = linear(bilstm(h, self.state, "music_encoder.lstm"), self.state, "music_encoder.out")
+            h = time_convs(music, state, [f"music_encoder.convs.{k}" for k in range(3)], pad_end=True)
+            h = linear(bilstm(h, state, "music_encoder.lstm"), state, "music_encoder.out")
             code = interpolate_linear(h, music.shape[1])
-        emb = self.state["style_embedding.weight"][np.asarray(style)]
+        emb = state["style_embedding.weight"][np.asarray(style)]
         return np.concatenate([code, np.broadcast_to(emb[:, None], (*code.shape[:2], emb.shape[1]))], axis=-1)
 
 

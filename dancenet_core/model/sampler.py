@@ -11,6 +11,7 @@ gives the same dance on any machine.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -32,21 +33,28 @@ def as_numpy(model: DanceNet | NumpyDanceNet) -> NumpyDanceNet:
     return model if isinstance(model, NumpyDanceNet) else model.to_numpy()
 
 
-def _window_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style: np.ndarray) -> np.ndarray:
-    """Conditioning [B, T, C] of windows of music [B, T, F], by the numpy runtime or by the torch model."""
+def _window_conditioner(model: DanceNet | NumpyDanceNet) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """Conditioning [B, T, C] of windows of music [B, T, F] and styles [B] in float64 (why: see
+    `NumpyDanceNet.conditioning`), by the numpy runtime or by a float64 copy of the torch model."""
     if isinstance(model, NumpyDanceNet):
-        return model.conditioning(music, style)
+        return model.conditioning
     import torch  # a torch model: training and evaluation, where torch is installed
 
-    model.eval()
-    with torch.no_grad():
-        return model.conditioning(torch.from_numpy(music), torch.from_numpy(style)).transpose(1, 2).numpy()
+    exact = copy.deepcopy(model).double().eval()
+
+    def conditioning(music: np.ndarray, style: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            code = exact.conditioning(torch.from_numpy(music).double(), torch.from_numpy(style))
+        return code.transpose(1, 2).numpy()
+
+    return conditioning
 
 
 def music_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style: int) -> np.ndarray:
     """Conditioning [T, C] for a whole song: 8-s windows overlapping by 2 s, cross-faded into one code.
 
-    Windows keep the encoder on the length it was trained on, so any song length works.
+    Windows keep the encoder on the length it was trained on, so any song length works. The code is computed
+    in float64 and rounded to float32 once, at the end: the numpy runtime and torch then give the same code.
     """
     cfg = model.cfg
     t = len(music)
@@ -59,10 +67,11 @@ def music_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style
     if len(starts) > 1:
         ramp[:ov] = np.linspace(0.0, 1.0, ov + 2)[1:-1]
         ramp[-ov:] = ramp[:ov][::-1].copy()
+    window_conditioning = _window_conditioner(model)
     for i in range(0, len(starts), 32):  # bounded memory for long songs
         chunk = starts[i : i + 32]
         batch = np.stack([music[s : s + win] for s in chunk]).astype(np.float32)
-        cond = _window_conditioning(model, batch, np.full(len(chunk), style, dtype=np.int64))
+        cond = window_conditioning(batch, np.full(len(chunk), style, dtype=np.int64))
         for s, c in zip(chunk, cond, strict=True):
             total[s : s + len(c)] += c * ramp[:, None]
             weight[s : s + len(c)] += ramp[:, None]
