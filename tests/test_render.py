@@ -186,6 +186,63 @@ def test_worker_processes_draw_the_same_frames() -> None:
     assert _differs(two[0], two[-1]) > 50  # the frames really differ along the dance
 
 
+def test_the_stage_draws_what_pyrender_draws() -> None:
+    """The renderer's own OpenGL (meshes kept in GPU buffers, pyrender's shading written out) gives the picture
+    that pyrender's scene renderer gives of the same figure, floor, shadows, lights and camera."""
+    from dancenet_core import render
+    from dancenet_core.kinematics import fk_numpy
+
+    if render.gl_platform() != "egl":
+        pytest.skip("pyrender draws without multisampling on OSMesa, so its picture is no reference there")
+    import pyrender as pr  # once the platform is chosen
+
+    motion = _tpose_and_raised_arm(ROOT)
+    motion.rotations[1, JOINT_INDEX["right_knee"], 0] = -1.2  # a foot off the floor: a smaller, fainter shadow
+    floor, camera = render.floor_height(motion), render.camera_path(motion, W, H)[1]
+    pos, rot = fk_numpy(motion.skeleton, motion.rotations[1:], motion.root_positions[1:])
+    stage = render._Stage(motion, W, H, floor)
+    fast = stage.render(pos[0], rot[0], camera)
+    stage.close()  # before pyrender's own context: closing one ends EGL's display for both
+    scene = pr.Scene(bg_color=[*(c / 255 for c in BACKGROUND_RGB), 1.0], ambient_light=stage._AMBIENT)
+    vertices, normals = stage.figure.posed(pos[0], rot[0])
+    scene.add(pr.Mesh([pr.Primitive(
+        positions=vertices, normals=normals, color_0=stage.figure.colours, indices=stage.figure.faces,
+        material=pr.MetallicRoughnessMaterial(metallicFactor=0.0, roughnessFactor=0.55))]))
+    corners, uv = render.floor_quad(motion, floor)
+    sampler = pr.Sampler(magFilter=pr.GLTF.LINEAR, minFilter=pr.GLTF.LINEAR_MIPMAP_LINEAR,
+                         wrapS=pr.GLTF.REPEAT, wrapT=pr.GLTF.REPEAT)
+    grid = pr.Texture(source=np.repeat(render._grid_texture()[..., None], 3, axis=2), source_channels="RGB",
+                      sampler=sampler)
+    scene.add(pr.Mesh([pr.Primitive(
+        positions=corners, normals=np.tile([0.0, 1.0, 0.0], (4, 1)), texcoord_0=uv,
+        indices=np.array([[0, 1, 2], [0, 2, 3]]),
+        material=pr.MetallicRoughnessMaterial(baseColorTexture=grid, metallicFactor=0.0, roughnessFactor=1.0))]))
+    corners, alpha = stage.shadow_quads(pos[0])
+    blob = np.zeros((*render._blob_texture().shape, 4), np.uint8)
+    blob[..., 3] = render._blob_texture()
+    n = len(corners) // 4
+    scene.add(pr.Mesh([pr.Primitive(
+        positions=corners, texcoord_0=(stage.shadow_corners[:, [0, 2]] + 1) / 2,
+        color_0=np.column_stack([np.zeros((4 * n, 3)), alpha]),
+        indices=(np.array([[0, 1, 2], [0, 2, 3]]) + 4 * np.arange(n)[:, None, None]).reshape(-1, 3),
+        material=pr.MetallicRoughnessMaterial(
+            baseColorFactor=[0.0, 0.0, 0.0, 1.0], alphaMode="BLEND", metallicFactor=0.0,
+            baseColorTexture=pr.Texture(source=blob, source_channels="RGBA")))]))
+    for direction, intensity in stage._LIGHTS:
+        pose = render._look_at(-np.asarray(direction), np.zeros(3))
+        scene.add(pr.DirectionalLight(intensity=intensity), pose=pose)
+    unit = render.figure_scale(motion.skeleton)
+    scene.add(pr.PerspectiveCamera(yfov=render.YFOV, znear=0.05 * unit, zfar=4 * render._FLOOR_MARGIN * unit),
+              pose=camera.pose)
+    reference = pr.OffscreenRenderer(W, H)
+    expected, _ = reference.render(scene)
+    reference.delete()
+    diff = np.abs(fast.astype(int) - expected.astype(int))
+    assert diff.mean() < 0.01  # a pixel's edge decided the other way here and there, nothing more
+    assert (diff.max(axis=-1) > 8).mean() < 1e-3
+    assert _differs(fast[H // 2, :], np.array(BACKGROUND_RGB)) > 40  # and there is a figure and floor to compare
+
+
 def test_tessellation_follows_size_on_screen() -> None:
     """Segments around a part keep its facets within 0.5 px of the outline: 4 for a sub-pixel finger,
     10 for a 7-px limb (chord gap 7 * (1 - cos(pi / 10)) = 0.34 px; 8 would leave 0.53), capped at 24."""
