@@ -273,9 +273,6 @@ def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_pa
     sc = real_scene
     props = sc.dancenet
     props.music_file, props.seed, props.root_motion = str(click_song(tmp_path / "clicks.wav")), 2, "root-bone"
-    # Known limit: at the default temperature (1.0) this join's acceleration is 0.063 against the dance's own
-    # 95th percentile of 0.056 (issue 18 stays open for it); at 0.5 it holds.
-    props.temperature = 0.5
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     rig = bpy.data.objects["DanceNet Dancer"]
     first_take = rig.animation_data.action
