@@ -50,13 +50,15 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
+    from dancenet_core.constants import DEFAULT_TEMPERATURE  # after the add-on has set up (see `main`)
+
     p = argparse.ArgumentParser(prog="batch.py", description="Generate dances for songs, one folder each.")
     p.add_argument("songs", nargs="+", type=Path, help="audio files")
     p.add_argument("--out", type=Path, required=True, help="output folder (one subfolder per song)")
     p.add_argument("--style", default="auto", help="dance style, or auto (the classifier picks)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--temperature", type=float, default=1.0,  # the core's DEFAULT_TEMPERATURE
-                   help="1 = as the model learnt the dancers, lower = calmer (default 1.0)")
+    p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
+                   help=f"1 = as the model learnt the dancers, lower = calmer (default {DEFAULT_TEMPERATURE})")
     p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
     p.add_argument("--root-motion", choices=("travel", "in-place", "root-bone"), default="travel",
                    help="travel (as danced), in-place, or root-bone (a root bone carries path and heading)")
@@ -119,9 +121,9 @@ def main(argv: list[str] | None = None, generator: Callable[..., Any] | None = N
     """Run the batch; `generator` defaults to the core's generate_dance."""
     if argv is None:
         argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
+    addon = _addon()  # first: in an extension it points the core's caches at its own folder before the core loads
     args = parse_args(argv)
-    addon = _addon()
-    from dancenet_core.errors import DanceNetError  # importable once the add-on has set up its paths
+    from dancenet_core.errors import DanceNetError
     from dancenet_core.outputs import check_folder_writable, free_folder, safe_stem
 
     try:

@@ -16,6 +16,7 @@ from typing import Any
 
 import bpy
 
+from dancenet_core.constants import DEFAULT_TEMPERATURE
 from dancenet_core.errors import DanceNetError
 
 from . import bonemap, rig
@@ -65,7 +66,7 @@ class GenerationRequest:
     song: Path
     style: str = "auto"
     seed: int = 0
-    temperature: float = 1.0  # the core's DEFAULT_TEMPERATURE
+    temperature: float = DEFAULT_TEMPERATURE
     takes: int = 1
     footfix: bool = True
     start_s: float = 0.0  # the part of the song to dance, in the song's own seconds

@@ -9,6 +9,7 @@ from typing import Any
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from dancenet_core.constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE
 from dancenet_core.skeleton import JOINT_NAMES
 
 from . import pipeline
@@ -56,7 +57,7 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         name="Seed", min=0, default=0, description="Another seed, another dance to the same song"
     )
     temperature: FloatProperty(
-        name="Temperature", min=0.0, max=3.0, soft_max=1.5, default=1.0,  # the core's DEFAULT_TEMPERATURE
+        name="Temperature", min=0.0, max=MAX_TEMPERATURE, soft_max=1.5, default=DEFAULT_TEMPERATURE,
         description="1: as the model learnt the dancers. Lower: calmer, smaller moves; higher: bolder, wilder",
     )  # fmt: skip
     takes: IntProperty(

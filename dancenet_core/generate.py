@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from .constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE
 from .continuation import join_kept
 from .errors import DanceNetError
 from .model.runtime import DEFAULT_RUNTIME, STYLE_RUNTIME, RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
@@ -32,13 +33,6 @@ if TYPE_CHECKING:
     # What generation runs: the runtime's arrays; training and evaluation pass their torch bundles too.
     Bundle = RuntimeBundle | DanceNetBundle
 
-# Sampling temperature (scales sigma within the drawn mixture component), chosen with the output smoothing on the
-# validation songs (model card): below 1 each frame adds less than the model's own variance and the dance loses
-# energy as it goes (temperature 0.1: FID_k 160 on the shipped weights before this model, 0.5: 102); at 1 with
-# 1.5 frames of smoothing, 98, jitter as the real dancers'.
-DEFAULT_TEMPERATURE = 1.0
-# Above this the mixture's sigma swamps the dance (temperature 1e9 put the dancer 7e7 m away).
-MAX_TEMPERATURE = 3.0
 MAX_SEED = 2**32 - 1
 MAX_TAKES = 100
 # The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).

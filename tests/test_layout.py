@@ -36,6 +36,13 @@ def test_importing_generate_loads_nothing_apart_from_dancing(prefix: str) -> Non
     assert [m for m in loaded if m == prefix or m.startswith(prefix + ".")] == []
 
 
+def test_the_shared_defaults_load_no_library() -> None:
+    """The add-on reads the generation defaults when it registers, where loading the generator would cost a
+    second: `dancenet_core.constants` loads neither numpy nor anything above it."""
+    loaded = _modules_after("import dancenet_core.constants")
+    assert [m for m in loaded if m.split(".")[0] in ("numpy", "scipy", "numba", "torch")] == []
+
+
 def test_help_does_not_import_torch() -> None:
     loaded = _modules_after("import contextlib\nfrom dancenet_core.cli import main\n"
                             "with contextlib.suppress(SystemExit):\n    main(['--help'])")
