@@ -1,6 +1,6 @@
 """Music analysis speed: seconds per minute of audio, cold (empty cache) and cached, and peak memory; and,
-in the same run, the cold analysis with madmom's own onset and downbeat processors (the path before the
-compiled networks) for the speed-up ratio.
+in the same run, the cold analysis with madmom's own onset and downbeat processors and its own downbeat DBN
+(the path before the compiled networks and decode) for the speed-up ratio.
 
 Usage: `python bench/analysis.py [--song PATH] [--synthetic-minutes M] [--workers N] [--no-baseline]`.
 Without --song it takes DANCE_W_1 from $DANCENET_DATA (default <repo>/../shared/data), else a synthetic
@@ -53,7 +53,14 @@ def madmom_processors() -> tuple:
     return (lambda sig: (onset(sig), beat(sig)), *compiled_processors()[1:])
 
 
-compiled_processors = features._processors
+def madmom_tracker():
+    """madmom's own downbeat DBN, its Viterbi decode not compiled: what the analysis ran before."""
+    from madmom.features.downbeats import DBNDownBeatTrackingProcessor
+
+    return DBNDownBeatTrackingProcessor(beats_per_bar=list(features.BEATS_PER_BAR), fps=features.ACT_FPS)
+
+
+compiled_processors, compiled_tracker = features._processors, features._tracker
 
 
 def main() -> int:
@@ -82,11 +89,11 @@ def main() -> int:
         warm = time.perf_counter() - t0
         baseline = None
         if not args.no_baseline:
-            features._processors = madmom_processors  # forked workers inherit it
+            features._processors, features._tracker = madmom_processors, madmom_tracker  # forked workers inherit them
             t0 = time.perf_counter()
             b = analyze_music(song, use_cache=False, workers=args.workers)
             baseline = time.perf_counter() - t0
-            features._processors = compiled_processors
+            features._processors, features._tracker = compiled_processors, compiled_tracker
             beats_same = len(b.beat_times) == len(a.beat_times) and bool(np.allclose(b.beat_times, a.beat_times))
             max_feature_diff = float(np.abs(b.features - a.features).max())
     minutes = a.duration_s / 60

@@ -7,7 +7,7 @@ the deep-chroma frame count (`linspace(0, n100 - 1, n_chroma)`). Frame j is cent
 T = floor(10 * duration + 0.5): madmom's ceil(N / 4410) chroma frames, less a last frame whose centre lies in
 the song's final 50 ms.
 
-madmom's networks hold whole spectrograms and the DBN a back-pointer per frame and state, so every song
+madmom's networks hold whole spectrograms and the DBN scores ~15k states per frame, so every song
 is processed in blocks (60 s, plus 5 s of real audio as context each side) and the DBN in 40-s windows
 (plus 10 s each side): peak memory stays under ~0.5 GB per worker process whatever the song's length.
 Chroma and mel are identical to a one-shot run; the bidirectional beat network remembers far back, so its
@@ -36,8 +36,9 @@ from ..environment import cache_root, default_workers
 from ..errors import DanceNetError, first_line
 from ..progress import Progress
 from ..series import interp_frames, stretch_frames
+from . import madmom_dbn, madmom_nets
 from .audio import MADMOM_SAMPLE_RATE, Audio, load_audio
-from .madmom_nets import OnsetAndBeat, load_compiled
+from .madmom_nets import OnsetAndBeat
 
 FEATURE_VERSION = "music-features-1"  # change whenever any computation below changes
 FPS = 10
@@ -56,7 +57,8 @@ _HOP_ACT = MADMOM_SAMPLE_RATE // ACT_FPS
 _HOP_10 = MADMOM_SAMPLE_RATE // FPS
 BLOCK_S = 60  # seconds of audio kept from one network pass
 CONTEXT_S = 5  # seconds of audio either side of a block, seen by the bidirectional networks, then dropped
-DBN_BLOCK_S = 40  # the Viterbi pass stores 4 bytes per frame and state (~15k states): ~360 MB here
+DBN_BLOCK_S = 40  # madmom's Viterbi pass stored 4 bytes per frame and state (~15k states): ~360 MB here;
+# the compiled decode (madmom_dbn) keeps 1/60 of that, but the windows stay: they shape the beats
 DBN_CONTEXT_S = 10
 
 
@@ -208,7 +210,8 @@ def analyze_audio(audio: Audio, *, workers: int | None = None, progress: Progres
         raise ValueError(f"analyze_audio needs {MADMOM_SAMPLE_RATE} Hz audio")
     x, n = audio.samples, len(audio.samples)
     blocks = _blocks(n, BLOCK_S * MADMOM_SAMPLE_RATE, CONTEXT_S * MADMOM_SAMPLE_RATE)
-    load_compiled()  # before the workers fork, so they inherit it
+    madmom_nets.load_compiled()  # before the workers fork, so they inherit them
+    madmom_dbn.load_compiled()
     with _executor(workers, len(blocks)) as ex:
         jobs = [(x[s0:s1], c0 - s0, c1 - s0, c1 == n) for s0, c0, c1, s1 in blocks]
         parts = _run_all(ex, _network_block, jobs, lambda f: report(0.9 * f))
@@ -344,13 +347,17 @@ def _network_block(
     )
 
 
-def _dbn_window(act: np.ndarray, c0: int, c1: int, t0: float) -> np.ndarray:
-    """Beats [time s, position in bar] found in the core [c0, c1) of one window of activations."""
+def _tracker():
+    """madmom's downbeat DBN for 3 and 4 beats to the bar, its Viterbi decode compiled (madmom_dbn)."""
     # madmom takes ~0.9 s to load: only an analysis that misses the cache loads it
     from madmom.features.downbeats import DBNDownBeatTrackingProcessor
 
-    dbn = DBNDownBeatTrackingProcessor(beats_per_bar=list(BEATS_PER_BAR), fps=ACT_FPS)
-    beats = np.asarray(dbn(act), np.float64).reshape(-1, 2)
+    return madmom_dbn.compiled_dbn(DBNDownBeatTrackingProcessor(beats_per_bar=list(BEATS_PER_BAR), fps=ACT_FPS))
+
+
+def _dbn_window(act: np.ndarray, c0: int, c1: int, t0: float) -> np.ndarray:
+    """Beats [time s, position in bar] found in the core [c0, c1) of one window of activations."""
+    beats = np.asarray(_tracker()(act), np.float64).reshape(-1, 2)
     keep = (beats[:, 0] >= c0 / ACT_FPS) & (beats[:, 0] < c1 / ACT_FPS)
     beats = beats[keep]
     beats[:, 0] += t0

@@ -10,7 +10,7 @@ import pytest
 from made_up import click_track, music
 
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE, load_audio
-from dancenet_core.music.madmom_nets import CompiledEnsemble, OnsetAndBeat, compiled
+from dancenet_core.music.madmom_nets import BatchedSpectrogram, CompiledEnsemble, OnsetAndBeat, compiled
 
 REPO = Path(__file__).resolve().parents[2]
 ATOL = 1e-4
@@ -123,3 +123,24 @@ def test_networks_equal_madmoms_own_layers_in_float64(shared_data: Path, monkeyp
         for layer in net.layers:
             _in_float64(layer)
         np.testing.assert_allclose(ours.out_fn(net_logits), net(data.astype(np.float64)), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("frame_size", [1024, 2048, 4096])
+@pytest.mark.parametrize("n", [500, 44101, 3 * MADMOM_SAMPLE_RATE + 7])
+def test_batched_spectrogram_matches_madmom(frame_size: int, n: int) -> None:
+    """Every frame, padded edges and signals shorter than a frame included, bit for bit as madmom's
+    spectrogram of its STFT, with what madmom's filterbank and difference steps read from the STFT."""
+    from madmom.audio.signal import FramedSignalProcessor, Signal
+    from madmom.audio.spectrogram import Spectrogram, SpectrogramDifference
+    from madmom.audio.stft import ShortTimeFourierTransformProcessor
+    from madmom.processors import SequentialProcessor
+
+    sig = Signal(music(n / MADMOM_SAMPLE_RATE + 0.1, seed=3)[:n], sample_rate=MADMOM_SAMPLE_RATE, num_channels=1)
+    frames, stft = FramedSignalProcessor(frame_size=frame_size, fps=100), ShortTimeFourierTransformProcessor()
+    theirs, ours = Spectrogram(SequentialProcessor((frames, stft))(sig)), BatchedSpectrogram(frames, stft)(sig)
+    assert type(ours) is type(theirs) and type(ours.stft) is type(theirs.stft)
+    assert ours.shape == theirs.shape and ours.dtype == theirs.dtype
+    np.testing.assert_array_equal(ours, theirs)
+    np.testing.assert_array_equal(ours.bin_frequencies, theirs.bin_frequencies)
+    diff = {k: SpectrogramDifference(s, diff_ratio=0.5) for k, s in (('ours', ours), ('theirs', theirs))}
+    np.testing.assert_array_equal(diff['ours'], diff['theirs'])
