@@ -2,14 +2,15 @@
 
 A map is {"name": ..., "description": ..., "bones": {"<SMPL-X joint>": "<bone>", ...}}. Joints left out
 of a map, and optional joints whose bone the armature lacks, are simply not driven; the joints in
-`rigdef.REQUIRED_JOINTS` must resolve or the dance could not read as a dance.
+`rigdef.REQUIRED_JOINTS` must resolve or the dance could not read as a dance. Auto goes by names first and
+by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 """
 
 from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from dancenet_core.errors import DanceNetError
 from dancenet_core.skeleton import JOINT_NAMES
 
 from .rigdef import REQUIRED_JOINTS
+from .shapemap import BODY_JOINTS, RestBone, match_shape
 
 MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
@@ -29,6 +31,7 @@ SHIPPED: dict[str, str] = {
 class BoneMap:
     name: str
     bones: dict[str, str | list[str]]  # joint name -> bone name, or names to try in turn
+    by_shape: frozenset[str] = frozenset()  # joints Auto found by the skeleton's shape, not by a name
 
 
 def name_key(name: str) -> tuple[str, str]:
@@ -162,8 +165,8 @@ def closest(bone_names: Iterable[str], saved: Path | None = None) -> BoneMap:
 
 
 def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) -> BoneMap:
-    """For Auto: the map that resolves every required joint and the most bones in all, among the user's
-    saved maps in `saved` (first, so they win a tie) and the shipped ones."""
+    """By names: the map that resolves every required joint and the most bones in all, among the user's
+    saved maps in `saved` (first, so they win a tie) and the shipped ones (Auto, `auto`, starts from it)."""
     names = list(bone_names)
     best: tuple[int, BoneMap] | None = None
     for candidate in [*user_maps(saved), *(load_shipped(key) for key in SHIPPED)]:
@@ -179,3 +182,22 @@ def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) 
             "Choose one and edit it (Edit Bone Map), or load your own JSON map"
         )
     return best[1]
+
+
+def auto(bones: Sequence[RestBone], armature: str, saved: Path | None = None) -> BoneMap:
+    """For Auto: the name map that fits best (`detect`, else `closest`), with the body joints its names leave
+    out found by the skeleton's shape, so a rig whose bone names follow no rule still gets a full map."""
+    names = [b.name for b in bones]
+    try:
+        base = detect(names, armature, saved)
+    except DanceNetError:
+        base = closest(names, saved)
+    found, _ = match(base, names)
+    if set(BODY_JOINTS) <= found.keys():
+        return base
+    shaped = {j: b for j, b in match_shape(bones).items() if j not in found and b not in found.values()}
+    if not shaped:
+        return base
+    if not found:  # no name matched: the base map's names would only be noise in the report
+        return BoneMap("Skeleton shape", dict(shaped), frozenset(shaped))
+    return BoneMap(f"{base.name} + shape", base.bones | shaped, frozenset(shaped))

@@ -21,8 +21,9 @@ def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
 
 
 def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) -> None:
-    """What the bone map found on the target armature: each required joint's bone or a warning, how many
-    optional joints it drives, and the controls to give a joint another bone and to save the map."""
+    """What the bone map found on the target armature: each required joint's bone (saying which Auto found
+    by the skeleton's shape rather than by name) or a warning, how many optional joints it drives, and the
+    controls to give a joint another bone and to save the map."""
     box = layout.box().column(align=True)
     try:
         chosen = pipeline.current_map(props)
@@ -36,7 +37,8 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     if props.show_matches or missing:  # always open while a joint the dance needs has no bone
         for joint in REQUIRED_JOINTS:
             if joint in found:
-                box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}", icon="CHECKMARK")
+                how = " (by shape)" if joint in chosen.by_shape else ""
+                box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}{how}", icon="CHECKMARK")
             else:
                 box.label(text=f"{joint.replace('_', ' ')}: no bone", icon="ERROR")
     row = box.row(align=True)

@@ -20,6 +20,7 @@ from dancenet_core.constants import DEFAULT_TEMPERATURE
 from dancenet_core.errors import DanceNetError
 
 from . import bonemap, rig
+from .shapemap import RestBone
 
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
 
@@ -167,9 +168,15 @@ def resolve_map(
     rig_obj: bpy.types.Object, bone_map: bonemap.BoneMap | None
 ) -> tuple[dict[str, str], list[str]]:
     """(joint -> bone, skipped optional joints) for an armature; DanceNetError if the map does not fit."""
-    names = [b.name for b in rig_obj.data.bones]
-    chosen = bone_map or bonemap.detect(names, rig_obj.name, saved_maps_dir())
-    return bonemap.resolve(chosen, names, rig_obj.name)
+    chosen = bone_map or bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir())
+    return bonemap.resolve(chosen, [b.name for b in rig_obj.data.bones], rig_obj.name)
+
+
+def rest_bones(rig_obj: bpy.types.Object) -> list[RestBone]:
+    """The armature's bones at rest in world space (Z up), for mapping by the skeleton's shape."""
+    world = rig_obj.matrix_world
+    return [RestBone(b.name, b.parent.name if b.parent else None, tuple(world @ b.head_local),
+                     tuple(world @ b.tail_local)) for b in rig_obj.data.bones]
 
 
 def saved_maps_dir() -> Path:
@@ -178,19 +185,15 @@ def saved_maps_dir() -> Path:
 
 
 def current_map(props: Any) -> bonemap.BoneMap:
-    """The bone map the panel's settings choose for the target armature (Auto: the detected one, or the
-    closest when none fits, to start fixing from)."""
+    """The bone map the panel's settings choose for the target armature (Auto: by names and shape, even when
+    it does not fit, to start fixing from)."""
     chosen = _chosen_map(props)
     if chosen is not None:
         return chosen
     rig_obj = props.armature
     if rig_obj is None or rig_obj.type != "ARMATURE":
         return bonemap.load_shipped("SMPLX")
-    names = [b.name for b in rig_obj.data.bones]
-    try:
-        return bonemap.detect(names, rig_obj.name, saved_maps_dir())
-    except DanceNetError:
-        return bonemap.closest(names, saved_maps_dir())
+    return bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir())
 
 
 def prepare(scene: bpy.types.Scene) -> Plan:

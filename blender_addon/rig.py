@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TypeVar
 
 import bpy
@@ -122,6 +123,35 @@ def _material() -> bpy.types.Material:
     return mat
 
 
+def armature_from_rows(
+    context: bpy.types.Context,
+    name: str,
+    rows: Iterable[tuple[str, str | None, Sequence[float], Sequence[float]]],
+    roll_axes: Mapping[str, Sequence[float]] | None = None,
+) -> bpy.types.Object:
+    """A new armature object in the active collection from (bone, parent | None, head, tail) rows in armature
+    space, parents named before or after their children; `roll_axes`: where a bone's Z axis points."""
+    if context.mode != "OBJECT" and context.view_layer.objects.active is not None:
+        bpy.ops.object.mode_set(mode="OBJECT")
+    data = bpy.data.armatures.new(name)
+    obj = bpy.data.objects.new(name, data)
+    (context.collection or context.scene.collection).objects.link(obj)
+    context.view_layer.objects.active = obj
+    rows = list(rows)
+    with context.temp_override(active_object=obj, object=obj):
+        bpy.ops.object.mode_set(mode="EDIT")
+        for bone, _parent, head, tail in rows:
+            eb = data.edit_bones.new(bone)
+            eb.head, eb.tail = head, tail
+            if roll_axes is not None and bone in roll_axes:
+                eb.align_roll(roll_axes[bone])
+        for bone, parent, _head, _tail in rows:
+            if parent is not None:
+                data.edit_bones[bone].parent = data.edit_bones[parent]
+        bpy.ops.object.mode_set(mode="OBJECT")
+    return obj
+
+
 def create_rig(
     context: bpy.types.Context,
     name: str = "DanceNet Rig",
@@ -135,52 +165,26 @@ def create_rig(
     quaternions, and no bone is connected, so the root's location is the only translation keyed. With
     `root_bone`, a `root` bone on the floor under the hips is their parent (root motion for game engines).
     """
-    collection = context.collection or context.scene.collection
-    view_layer = context.view_layer
-    if context.mode != "OBJECT" and view_layer.objects.active is not None:
-        bpy.ops.object.mode_set(mode="OBJECT")
-
-    data = bpy.data.armatures.new(name)
-    data[rigdef.RIG_PROP] = True
-    data.display_type = "OCTAHEDRAL"
-    rig = bpy.data.objects.new(name, data)
-    rig.rotation_euler = rigdef.OBJECT_ROTATION
-    rig.show_in_front = True
-    collection.objects.link(rig)
-
     heads = rigdef.rest_heads(skeleton)
     tails = rigdef.tail_offsets(skeleton)
-    rolls = rigdef.roll_axes(tails)
-    view_layer.objects.active = rig
-    with context.temp_override(active_object=rig, object=rig):
-        bpy.ops.object.mode_set(mode="EDIT")
-        bones = []
-        floor = None
-        if root_bone:
-            floor = data.edit_bones.new(rigdef.ROOT_BONE)
-            floor.head, floor.tail = (0.0, 0.0, 0.0), rigdef.ROOT_TAIL
-        for j, bone_name in enumerate(skeleton.names):
-            eb = data.edit_bones.new(bone_name)
-            eb.head = heads[j]
-            eb.tail = heads[j] + tails[j]
-            eb.align_roll(rolls[j])
-            eb.use_connect = False
-            eb.use_deform = True
-            if skeleton.parents[j] >= 0:
-                eb.parent = bones[skeleton.parents[j]]
-            else:
-                eb.parent = floor
-            bones.append(eb)
-        bpy.ops.object.mode_set(mode="OBJECT")
+    floor = rigdef.ROOT_BONE if root_bone else None
+    rows = [(rigdef.ROOT_BONE, None, (0.0, 0.0, 0.0), rigdef.ROOT_TAIL)] if root_bone else []
+    rows += [(bone, skeleton.names[p] if p >= 0 else floor, heads[j], heads[j] + tails[j])
+             for j, (bone, p) in enumerate(zip(skeleton.names, skeleton.parents, strict=True))]  # fmt: skip
+    rig = armature_from_rows(context, name, rows, dict(zip(skeleton.names, rigdef.roll_axes(tails), strict=True)))
+    rig.data[rigdef.RIG_PROP] = True
+    rig.data.display_type = "OCTAHEDRAL"
+    rig.rotation_euler = rigdef.OBJECT_ROTATION
+    rig.show_in_front = True
     for pb in rig.pose.bones:
         pb.rotation_mode = "QUATERNION"
 
     if with_mesh:
-        _add_mannequin(rig, skeleton, collection)
+        _add_mannequin(rig, skeleton, rig.users_collection[0])
     for obj in context.selected_objects:
         obj.select_set(False)
     rig.select_set(True)
-    view_layer.update()
+    context.view_layer.update()
     return rig
 
 

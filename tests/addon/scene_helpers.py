@@ -84,24 +84,14 @@ def build_armature(name: str, bones, mixamo_import: bool = True, seed: int = 0):
 
     `mixamo_import`: stored like a Mixamo FBX import, Y-up centimetres turned and scaled 0.01 by the object.
     """
-    data = bpy.data.armatures.new(name)
-    obj = bpy.data.objects.new(name, data)
-    bpy.context.scene.collection.objects.link(obj)
+    from blender_addon.rig import armature_from_rows
+
+    bones = list(bones)
+    rng = np.random.default_rng(seed)
+    obj = armature_from_rows(bpy.context, name, bones, {b[0]: rng.normal(size=3) for b in bones})
     if mixamo_import:
         obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
         obj.scale = (0.01, 0.01, 0.01)
-    rng = np.random.default_rng(seed)
-    bpy.context.view_layer.objects.active = obj
-    with bpy.context.temp_override(active_object=obj, object=obj):
-        bpy.ops.object.mode_set(mode="EDIT")
-        for bone, _parent, head, tail in bones:
-            eb = data.edit_bones.new(bone)
-            eb.head, eb.tail = head, tail
-            eb.roll = float(rng.uniform(-math.pi, math.pi))
-        for bone, parent, _head, _tail in bones:
-            if parent is not None:
-                data.edit_bones[bone].parent = data.edit_bones[parent]
-        bpy.ops.object.mode_set(mode="OBJECT")
     bpy.context.view_layer.update()
     return obj
 

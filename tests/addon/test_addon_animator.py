@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from doubles import CALLS, convention_rest, make_fake_generator, synthetic_motion, write_song
+from doubles import CALLS, convention_rest, make_fake_generator, mixamo_rest, synthetic_motion, write_song
 from scene_helpers import bpy, build_armature, fk_world, panel_screenshot, snapshot, world_heads
 
 
@@ -514,30 +514,177 @@ def test_every_convention_is_mapped_automatically_and_lands(scene, addon, song, 
     assert error < 0.05, error
 
 
-def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, song):
-    # A DAZ-like rig whose left forearm bone has a name no map knows.
-    rows = convention_rest(addon.bonemap.load_shipped("DAZ").bones, a_pose_deg=45.0)
-    rows = [("lLowerArmX" if b == "lForearmBend" else b, "lLowerArmX" if p == "lForearmBend" else p, h, t)
-            for b, p, h, t in rows]
-    rig = build_armature("Genesis", rows, mixamo_import=False)
+def renamed(rows, names: dict[str, str]) -> list:
+    """Rows with bones (and parents) renamed."""
+    return [(names.get(b, b), names.get(p, p), h, t) for b, p, h, t in rows]
+
+
+def turned(rows, degrees: float) -> list:
+    """Rows turned about the vertical (Z), as a rig facing another way."""
+    a = np.radians(degrees)
+    r = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    return [(b, p, r @ np.asarray(h, float), r @ np.asarray(t, float)) for b, p, h, t in rows]
+
+
+def meaningless(rows, seed: int) -> tuple[list, dict[str, str]]:
+    """Rows with every bone called bone_001, bone_002... in a random order, and new name -> old."""
+    rng = np.random.default_rng(seed)
+    new = {b: f"bone_{k:03d}" for k, b in zip(rng.permutation(len(rows)) + 1, (r[0] for r in rows), strict=True)}
+    rows = renamed(rows, new)
+    return [rows[i] for i in rng.permutation(len(rows))], {v: k for k, v in new.items()}
+
+
+@pytest.mark.parametrize("convention", list(CONVENTIONS))
+def test_the_skeletons_shape_finds_the_body_joints_of_each_convention_whatever_the_names(addon, convention):
+    """Plain bone lists: each convention's rig with meaningless names, in a random order, facing another way."""
+    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+
+    key = convention.split()[0]
+    layout = CONVENTIONS[convention]
+    shipped = addon.bonemap.load_shipped(key).bones
+    names = layout.get("names") or {j: b if isinstance(b, str) else b[0] for j, b in shipped.items()}
+    rows = convention_rest(shipped, scale=0.92, arm_scale=1.04, leg_scale=0.97, **layout)
+    for degrees in (0.0, 90.0, 200.0):
+        rows_seen, old = meaningless(turned(rows, degrees), seed=len(convention))
+        found = {j: old[b] for j, b in match_shape([RestBone(*r) for r in rows_seen]).items()}
+        assert found == {j: names[j] for j in BODY_JOINTS if j in names}, degrees
+
+
+def test_the_skeletons_shape_reads_a_mixamo_import_and_refuses_what_is_no_humanoid(addon):
+    """A Y-up centimetre Mixamo skeleton turned Z-up (as its object shows it), one finger, a head-top end bone;
+    then a chain, one bone, no bones, a one-legged rig."""
+    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+
+    z_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]) * 0.01
+    rows = [(b, p, z_up @ np.asarray(h), z_up @ np.asarray(t)) for b, p, h, t in mixamo_rest(prefix="")]
+    shipped = addon.bonemap.load_shipped("MIXAMO").bones
+    found = match_shape([RestBone(*r) for r in rows])
+    assert found == {j: shipped[j].split(":")[1] for j in BODY_JOINTS}
+
+    chain = [RestBone(f"b{i}", f"b{i - 1}" if i else None, (0, 0, i), (0, 0, i + 1)) for i in range(12)]
+    assert match_shape(chain) == {} and match_shape(chain[:1]) == {} and match_shape([]) == {}
+    daz = addon.bonemap.load_shipped("DAZ")
+    one_leg = [r for r in convention_rest(daz.bones) if not r[0].startswith("r") or r[0].startswith("rCollar")
+               or r[0] in ("rShldrBend", "rForearmBend", "rHand")]  # fmt: skip
+    assert match_shape([RestBone(*r) for r in one_leg]) == {}
+
+
+def test_the_skeletons_shape_holds_over_random_proportions_poses_and_extra_bones(addon):
+    """60 random SMPL-X-shaped rigs: size, limb lengths, A-pose, twist bones in and beside the chains, a root
+    bone, a head-top end bone, fingers or none, facing any way: every body joint is found."""
+    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+
+    smplx = addon.bonemap.load_shipped("SMPLX").bones
+    rng = np.random.default_rng(18)
+    limbs = [f"{side}_{j}" for side in ("left", "right") for j in ("shoulder", "elbow", "hip", "knee")]
+    for trial in range(60):
+        scale = float(rng.uniform(0.5, 2.0))
+        rows = convention_rest(smplx, scale=scale, a_pose_deg=float(rng.uniform(0.0, 50.0)),
+                               arm_scale=float(rng.uniform(0.85, 1.15)), leg_scale=float(rng.uniform(0.85, 1.15)),
+                               splits={j: f"{j} twist" for j in [*limbs, "spine1", "neck"] if rng.random() < 0.3},
+                               names=None if rng.random() < 0.5 else {j: j for j in BODY_JOINTS},
+                               root="root" if rng.random() < 0.5 else None)  # fmt: skip
+        ends = {b: (np.asarray(h), np.asarray(t)) for b, _p, h, t in rows}
+        rows += [(f"{j} leaf", j, ends[j][0] + 0.3 * (ends[j][1] - ends[j][0]),
+                  ends[j][0] + 0.6 * (ends[j][1] - ends[j][0])) for j in limbs if rng.random() < 0.4]  # fmt: skip
+        if rng.random() < 0.5:
+            top = ends["head"][0] + (0.0, 0.0, 0.15 * scale)
+            rows.append(("head end", "head", top, top + (0.0, 0.0, 0.1 * scale)))
+        rows_seen, old = meaningless(turned(rows, float(rng.uniform(0.0, 360.0))), seed=trial)
+        found = {j: old[b] for j, b in match_shape([RestBone(*r) for r in rows_seen]).items()}
+        assert found == {j: j for j in BODY_JOINTS}, trial
+
+
+def test_auto_goes_by_names_first_and_by_shape_for_what_they_leave_out(addon):
+    from blender_addon.shapemap import RestBone
+
+    daz = addon.bonemap.load_shipped("DAZ")
+    rows = convention_rest(daz.bones, a_pose_deg=45.0)
+    chosen = addon.bonemap.auto([RestBone(*r) for r in rows], "Genesis")
+    assert chosen.name == daz.name and not chosen.by_shape  # the names found every body joint
+    rows = renamed(rows, {"lForearmBend": "lLowerArmX", "neckLower": "Hals"})
+    chosen = addon.bonemap.auto([RestBone(*r) for r in rows], "Genesis")
+    assert chosen.name == f"{daz.name} + shape" and chosen.by_shape == {"left_elbow", "neck"}
+    found, _ = addon.bonemap.resolve(chosen, [r[0] for r in rows], "Genesis")
+    assert found["left_elbow"] == "lLowerArmX" and found["neck"] == "Hals" and found["left_wrist"] == "lHand"
+
+
+# (names, how the rig is laid out): SMPL-X's full skeleton (fingers, jaw, eyes) with meaningless names in a T-pose;
+# Japanese names, an A-pose, twist and root bones, stored Y-up in centimetres and turned by the object.
+_SHAPE_ONLY = {
+    "bone_001 T-pose": ({}, {}),
+    "日本語 A-pose": ({"pelvis": "腰", "spine1": "背骨", "spine2": "胸", "spine3": "上胸", "neck": "首", "head": "頭"}
+                     | {f"{side}_{j}": f"{s}{part}" for side, s in (("left", "左"), ("right", "右"))
+                        for j, part in (("collar", "肩"), ("shoulder", "腕"), ("elbow", "ひじ"), ("wrist", "手首"),
+                                        ("hip", "足"), ("knee", "ひざ"), ("ankle", "足首"), ("foot", "つま先"))},
+                     {"a_pose_deg": 40.0, "root": "全ての親", "splits": {
+                         "left_shoulder": "左腕捩", "right_elbow": "右手捩", "left_hip": "左足捩", "spine1": "背骨2"}}),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("rig_kind", list(_SHAPE_ONLY))
+def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon, song, rig_kind):
+    """Generate Dance (Auto) on a humanoid whose bone names match no map: every required joint comes from the
+    shape, the panel says so, and feet, hands and head land within 5% of body height of the dance."""
+    names, layout = _SHAPE_ONLY[rig_kind]
+    smplx = addon.bonemap.load_shipped("SMPLX").bones
+    rows = convention_rest(smplx, names=names or None, **layout)
+    if names:  # stored like an FBX import: Y-up centimetres, the object turns and scales it back
+        y_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]) * 100.0
+        rows, old = [(b, p, y_up @ np.asarray(h), y_up @ np.asarray(t)) for b, p, h, t in rows], {}
+        expected = names
+    else:
+        rows, old = meaningless(rows, seed=7)
+        expected = {joint: bone for bone, joint in old.items()}
+    rig = build_armature(rig_kind, rows, mixamo_import=bool(names), seed=5)
+    scene.render.fps = 30  # the fake's own rate: frame f is the dance's frame f
     props = scene.dancenet
     props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    props.show_matches = True
     shot = panel_screenshot()
     shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
-    assert shown["left elbow: no bone"].icon == "ERROR"
-    assert shown["left wrist: lHand"].icon == "CHECKMARK"
-    with pytest.raises(RuntimeError, match="No shipped bone map"):
+    for joint in addon.rigdef.REQUIRED_JOINTS:
+        assert shown[f"{joint.replace('_', ' ')}: {expected[joint]} (by shape)"].icon == "CHECKMARK"
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
+    mapping, _ = addon.pipeline.resolve_map(rig, None)
+    assert {j: mapping[j] for j in addon.shapemap.BODY_JOINTS} == {j: expected[j] for j in addon.shapemap.BODY_JOINTS}
+    error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
+    LANDING[f"shape only, {rig_kind}"] = error
+    assert error < 0.05, error
+
+
+def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, song):
+    # A DAZ-like rig without a neck bone (no name or shape finds one): the panel says what is missing.
+    daz = addon.bonemap.load_shipped("DAZ")
+    rows = [(b, "chestUpper" if b == "head" else p, h, t) for b, p, h, t in convention_rest(daz.bones, a_pose_deg=45.0)
+            if b != "neckLower"]  # fmt: skip
+    props = scene.dancenet
+    props.music_source, props.music_file, props.target = "FILE", str(song), "EXISTING"
+    props.armature = build_armature("No neck", rows, mixamo_import=False)
+    shot = panel_screenshot()
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
+    assert shown["neck: no bone"].icon == "ERROR"
+    with pytest.raises(RuntimeError, match="missing neck"):
         bpy.ops.dancenet.generate()
 
-    props.fix_joint, props.fix_bone = "left_elbow", "lLowerArmX"
-    assert bpy.ops.dancenet.fix_bone() == {"FINISHED"}
-    assert props.bone_map == "TEXT"
-    assert '"left_elbow": "lLowerArmX"' in props.bone_map_text.as_string()
+    # Its left forearm bone has a name no map knows: Auto finds it by shape; the user prefers the twist bone.
+    rows = renamed(convention_rest(daz.bones, a_pose_deg=45.0, splits={"left_elbow": "lForearmTwist"}),
+                   {"lForearmBend": "lLowerArmX"})
+    rig = build_armature("Genesis", rows, mixamo_import=False)
+    props.armature = rig
     shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
-    assert "left elbow: lLowerArmX" not in shown  # nothing missing: the list folds away...
+    assert "left elbow: lLowerArmX (by shape)" not in shown  # nothing missing: the list folds away...
     props.show_matches = True
     shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
-    assert shown["left elbow: lLowerArmX"].icon == "CHECKMARK"  # ...and opens on request
+    assert shown["left elbow: lLowerArmX (by shape)"].icon == "CHECKMARK"  # ...and opens on request
+    assert shown["left wrist: lHand"].icon == "CHECKMARK"
+
+    props.fix_joint, props.fix_bone = "left_elbow", "lForearmTwist"
+    assert bpy.ops.dancenet.fix_bone() == {"FINISHED"}
+    assert props.bone_map == "TEXT"
+    assert '"left_elbow": "lForearmTwist"' in props.bone_map_text.as_string()
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
+    assert shown["left elbow: lForearmTwist"].icon == "CHECKMARK"
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
 
     # Saved, the map is found by Auto for the same rig in another file (a fresh scene).
@@ -547,7 +694,7 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
     rig2 = build_armature("Genesis 2", rows, mixamo_import=False)
     chosen = addon.bonemap.detect([b.name for b in rig2.data.bones], rig2.name, addon.pipeline.saved_maps_dir())
     assert chosen.name == "Genesis custom"
-    assert chosen.bones["left_elbow"] == "lLowerArmX"
+    assert chosen.bones["left_elbow"] == "lForearmTwist"
     saved.unlink()
 
 
