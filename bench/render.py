@@ -1,16 +1,18 @@
-"""Preview rendering speed: pyrender (what `dancenet render` uses) vs Blender's Workbench engine.
+"""Preview rendering speed: the preview renderer (what `dancenet render` uses) vs Blender's Workbench engine.
 
 Usage: `python bench/render.py [--frames 500] [--width 640] [--height 360] [--engine all]`. Prints JSON.
 
-The same synthetic 55-joint dance is drawn by both. pyrender: frames per second through `iter_frames`
+The same synthetic 55-joint dance is drawn by both. The preview renderer (engine "pyrender": OpenGL on
+pyrender's off-screen context, a pyrender scene before issue 17): frames per second through `iter_frames`
 (forward kinematics, drawing, read-back), and through `render_motion` (the same plus H.264 encoding in
 ffmpeg). Blender (only when `bpy` imports): the add-on's armature and mannequin mesh keyed with the dance,
 a floor and a fixed camera, Workbench with FXAA and shadows, one `render(write_still=True)` per frame.
 Each engine runs in its own child process, so their OpenGL contexts and start-up costs stay apart;
 the first frame (context, shader compiles; with worker processes, their start and first chunk) is timed
 on its own as `first_frame_s`. `--engine pyrender` also runs, in the same run and its own process, the
-renderer as it was before issue 17 (read from git at BEFORE_COMMIT) under `before`, with the speed-ups;
-`video_frames_per_s` (drawing, encoding, the mp4 written) is the figure to compare.
+renderer as it was before issue 17 (read from git at BEFORE_COMMIT: a pyrender scene drawn in one process)
+under `before`, with the speed-ups `speedup_frames` and `speedup_video`; `video_frames_per_s` (drawing,
+encoding, the mp4 written) is the figure a user waits on.
 """
 
 from __future__ import annotations

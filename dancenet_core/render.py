@@ -1,7 +1,8 @@
-"""Preview renderer: the dancer as capsules and spheres on a grid floor, drawn off-screen with pyrender.
+"""Preview renderer: the dancer as capsules and spheres on a grid floor, drawn off-screen with OpenGL.
 
-pyrender because it draws headless from plain numpy (EGL, on a GPU or Mesa's llvmpipe; OSMesa where EGL
-is missing), so the command line and CI make previews without Blender. Frames go raw (rgb24) down a pipe
+pyrender gives the headless OpenGL context (EGL, on a GPU or Mesa's llvmpipe; OSMesa where EGL is missing),
+so the command line and CI make previews without Blender; the drawing itself is a few OpenGL calls of our
+own with pyrender's shading (`_Stage` says why). Frames go raw (rgb24) down a pipe
 to ffmpeg, which encodes H.264 and muxes the music from time zero, trimmed or padded to the dance, so
 sound and picture start and end together. The camera looks from the front (+Z, where the rest pose
 faces) and follows the dancer's low-pass-filtered root, so steps do not shake it.
