@@ -2,13 +2,14 @@
 
 madmom steps its (B)LSTM and tanh-RNN layers one frame at a time in Python, a few small numpy calls per
 gate and frame: that stepping was ~70 % of the music analysis. Here the networks of an ensemble (the 8
-downbeat BLSTMs, the 8 onset BRNNs) run together: each layer's input projection for every network,
-direction and gate is one matrix product (BLAS), and the recurrences of all networks and both directions
-go through one numba loop (hand-written because no maintained library runs madmom's peephole LSTMs on
-numpy arrays without a torch-sized dependency). The weights are madmom's, read from the processors madmom
+downbeat BLSTMs, the 8 onset BRNNs) run together: each layer's input projection for a network's
+directions and gates is one matrix product (BLAS), and the recurrences of both directions go through one
+numba loop (hand-written because no maintained library runs madmom's peephole LSTMs on numpy arrays
+without a torch-sized dependency). The weights are madmom's, read from the processors madmom
 loads from its own model files; its pre- and post-processing run unchanged, but for the spectrograms the
 onset and downbeat processors share (BatchedSpectrogram: the same numbers, without madmom's per-frame FFT
-calls). The loop's gate nonlinearities go through an exp of its own that the compiler vectorises.
+calls). The loop's gate nonlinearities go through an exp of its own that the compiler vectorises; each
+gate's units are padded to a whole number of vectors, and the recurrent product adds four rows per pass.
 
 The loop runs in float64. Each network gives what madmom's own layers give when run in float64 (3e-9 at
 most over a whole real song, tests to 1e-9). Against madmom's float32 processors the averaged activations
@@ -68,23 +69,27 @@ def _sigmoid(x: float) -> float:  # pragma: no cover - compiled
     return 1.0 / (1.0 + _exp(-x))
 
 
+LANES = 8  # float64 in a 512-bit vector: each gate's units padded to a multiple, so no loop has a remainder
+
+
 @njit(cache=True, error_model="numpy")  # numpy's model: no zero-division checks, which stop vectorising
 def _scan(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray,
-          c0: np.ndarray, backward: np.ndarray, lstm: bool) -> np.ndarray:  # pragma: no cover - compiled
+          c0: np.ndarray, backward: np.ndarray, lstm: bool, out: np.ndarray) -> None:  # pragma: no cover - compiled
     """Recurrences of C independent chains over T frames. pre [A, T, B, G*H] holds x @ W for chain
-    c = a * B + b (A * B = C), bias [C, G*H] b; rec [C, H, G*H]; peep [C, 3, H] (LSTM: input, forget,
-    output gate); h0, c0 [C, H]; chains with backward[c] run from the last frame, and their output is stored
-    at the frame it belongs to (as madmom's BidirectionalLayer returns it): out [C / 2, T, 2, H], each
-    network's forward then backward chain. G = 4 (madmom's LSTMLayer with peepholes) or 1 (its tanh
-    RecurrentLayer)."""
+    c = a * B + b (A * B = C), bias [C, G*H] b; rec [C, H, G*S] with gate q of unit j in column q * S + j,
+    S >= H a multiple of LANES, the padding columns zero; peep [C, 3, S] (LSTM: input, forget, output gate;
+    zero past H); h0, c0 [C, H]; chains with backward[c] run from the last frame, and their output is
+    stored at the frame it belongs to (as madmom's BidirectionalLayer returns it) in out [C / 2, T, 2, H],
+    each network's forward then backward chain. G = 4 (madmom's LSTMLayer with peepholes) or 1 (its tanh
+    RecurrentLayer). The padded units start at zero and stay zero; only the first H reach the output."""
     _, n_t, n_b, width = pre.shape
     n_c, n_h = h0.shape
-    out = np.empty((n_c // 2, n_t, 2, n_h), np.float64)
-    g = np.empty(width, np.float64)
-    h = np.empty(n_h, np.float64)
-    s = np.empty(n_h, np.float64)
-    e1, e2, e3 = np.empty(n_h, np.float64), np.empty(n_h, np.float64), np.empty(n_h, np.float64)
-    g_in, g_forget, g_cell, g_out = g[:n_h], g[n_h : 2 * n_h], g[2 * n_h : 3 * n_h], g[3 * n_h :]
+    n_gates, stride = width // n_h, peep.shape[2]
+    n_k = n_gates * stride
+    g = np.zeros(n_k, np.float64)
+    h, s = np.zeros(stride, np.float64), np.zeros(stride, np.float64)
+    e1, e2, e3 = np.zeros(stride, np.float64), np.zeros(stride, np.float64), np.zeros(stride, np.float64)
+    g_in, g_forget, g_cell, g_out = g[:stride], g[stride : 2 * stride], g[2 * stride : 3 * stride], g[3 * stride :]
     for c in range(n_c):
         p_in, p_forget, p_out = peep[c, 0], peep[c, 1], peep[c, 2]
         a, b = c // n_b, c % n_b
@@ -93,42 +98,52 @@ def _scan(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.ndarray, 
             s[j] = c0[c, j]
         for step in range(n_t):
             t = n_t - 1 - step if backward[c] else step
-            for k in range(width):
-                g[k] = pre[a, t, b, k] + bias[c, k]
-            for i in range(n_h):
-                hi = h[i]
-                for k in range(width):
-                    g[k] += hi * rec[c, i, k]
+            for q in range(n_gates):
+                for j in range(n_h):
+                    g[q * stride + j] = pre[a, t, b, q * n_h + j] + bias[c, q * n_h + j]
+            n_four = n_h // 4 * 4
+            for i in range(0, n_four, 4):  # four rows per pass over g (a quarter of its loads and stores),
+                # each product still added on its own and in row order: the sums of one row at a time, bit for bit
+                h_0, h_1, h_2, h_3 = h[i], h[i + 1], h[i + 2], h[i + 3]
+                r_0, r_1, r_2, r_3 = rec[c, i], rec[c, i + 1], rec[c, i + 2], rec[c, i + 3]
+                for k in range(n_k):
+                    g[k] = (((g[k] + h_0 * r_0[k]) + h_1 * r_1[k]) + h_2 * r_2[k]) + h_3 * r_3[k]
+            for i in range(n_four, n_h):
+                h_i, r_i = h[i], rec[c, i]
+                for k in range(n_k):
+                    g[k] += h_i * r_i[k]
             if lstm:  # one simple loop per step of the cell (as one loop it does not vectorise)
-                for j in range(n_h):
+                for j in range(stride):
                     e1[j] = _sigmoid(g_in[j] + s[j] * p_in[j])
-                for j in range(n_h):
+                for j in range(stride):
                     e2[j] = _sigmoid(g_forget[j] + s[j] * p_forget[j])
-                for j in range(n_h):
+                for j in range(stride):
                     e3[j] = _tanh(g_cell[j])
-                for j in range(n_h):
+                for j in range(stride):
                     s[j] = e3[j] * e1[j] + s[j] * e2[j]
-                for j in range(n_h):
+                for j in range(stride):
                     e1[j] = _sigmoid(g_out[j] + s[j] * p_out[j])
-                for j in range(n_h):
+                for j in range(stride):
                     h[j] = _tanh(s[j]) * e1[j]
             else:
-                for j in range(n_h):
+                for j in range(stride):
                     h[j] = _tanh(g[j])
             for j in range(n_h):
                 out[c // 2, t, c % 2, j] = h[j]
-    return out
 
 
 def load_compiled() -> None:
     """Load the compiled loop (numba's on-disk cache, or a compile) into this process, so that worker
     processes forked from it start with it instead of each loading it again (~0.5 s)."""
     one = np.zeros((2, 1), np.float64)
-    _scan(np.zeros((1, 1, 2, 1)), one, np.zeros((2, 1, 1)), np.zeros((2, 3, 1)), one, one, np.zeros(2, np.bool_), False)
+    _scan(np.zeros((1, 1, 2, 1)), one, np.zeros((2, 1, LANES)), np.zeros((2, 3, LANES)), one, one,
+          np.zeros(2, np.bool_), False, np.zeros((1, 1, 2, 1)))
 
 
 class _Recurrent:
     """One bidirectional depth of the ensemble: every network's forward and backward layer as chains."""
+
+    GROUP = 1  # networks whose input products are computed, then scanned, together
 
     def __init__(self, layers: Sequence) -> None:
         # madmom takes ~0.9 s to load: only an analysis that misses the cache loads it
@@ -167,24 +182,36 @@ class _Recurrent:
         self.lstm = kinds == {"lstm"}
         self.weights = np.stack(weights).astype(np.float64)  # [C, in, G*H]
         self.bias = np.stack(bias).astype(np.float64)  # [C, G*H]
-        self.rec = np.ascontiguousarray(np.stack(rec), np.float64)
-        self.peep = np.ascontiguousarray(np.stack(peep), np.float64)
+        rec, peep = np.stack(rec), np.stack(peep)  # [C, H, G*H], [C, 3, H]: padded to S units a gate
+        n_c, n_h, width = rec.shape
+        stride = -(-n_h // LANES) * LANES
+        self.rec = np.zeros((n_c, n_h, width // n_h, stride), np.float64)
+        self.rec[..., :n_h] = rec.reshape(n_c, n_h, width // n_h, n_h)
+        self.rec = self.rec.reshape(n_c, n_h, -1)
+        self.peep = np.zeros((n_c, 3, stride), np.float64)
+        self.peep[..., :n_h] = peep
         self.h0 = np.ascontiguousarray(np.stack(h0), np.float64)
         self.c0 = np.ascontiguousarray(np.stack(c0), np.float64)
         self.backward = np.array([c % 2 == 1 for c in range(len(weights))])
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """x [T, in] shared by all networks, or [N, T, in] one per network; returns [N, T, 2H]. The
-        products come out in the layout the loop reads (no copies of the [T, C, G*H] inputs)."""
+        products come out in the layout the loop reads (no copies of the [T, C, G*H] inputs), a group of
+        networks at a time: all 8 networks' products are ~90 MB for a 70-s block, which a fresh worker
+        process faults in page by page (slowly in a virtual machine); a group's fit in a few MB."""
         n_c, n_in, width = self.weights.shape
-        if x.ndim == 2:  # first depth: one product for every network, direction and gate
-            w = self.weights.transpose(1, 0, 2).reshape(n_in, n_c * width)
-            pre = (x @ w).reshape(1, len(x), n_c, width)
-        else:  # later depths: each network reads its own previous depth, both directions from it
-            w = self.weights.reshape(n_c // 2, 2, n_in, width).transpose(0, 2, 1, 3).reshape(n_c // 2, n_in, -1)
-            pre = (x @ w).reshape(n_c // 2, x.shape[1], 2, width)  # [N, T, direction, G*H]
-        out = _scan(pre, self.bias, self.rec, self.peep, self.h0, self.c0, self.backward, self.lstm)
-        n_n, n_t, _, n_h = out.shape
+        n_n, n_t, n_h = n_c // 2, x.shape[-2], self.h0.shape[1]
+        out = np.empty((n_n, n_t, 2, n_h), np.float64)
+        for n0 in range(0, n_n, self.GROUP):
+            nets, chains = slice(n0, n0 + self.GROUP), slice(2 * n0, 2 * (n0 + self.GROUP))
+            if x.ndim == 2:  # first depth: one product for every network, direction and gate of the group
+                w = self.weights[chains].transpose(1, 0, 2).reshape(n_in, -1)
+                pre = (x @ w).reshape(1, n_t, -1, width)
+            else:  # later depths: each network reads its own previous depth, both directions from it
+                w = self.weights[chains].reshape(-1, 2, n_in, width).transpose(0, 2, 1, 3).reshape(-1, n_in, 2 * width)
+                pre = (x[nets] @ w).reshape(-1, n_t, 2, width)  # [N, T, direction, G*H]
+            _scan(pre, self.bias[chains], self.rec[chains], self.peep[chains], self.h0[chains], self.c0[chains],
+                  self.backward[chains], self.lstm, out[nets])
         return out.reshape(n_n, n_t, 2 * n_h)  # [N, T, fwd H | bwd H]
 
 
@@ -240,7 +267,7 @@ class BatchedSpectrogram:
     every attribute the filterbank and difference steps read (frames, window, bin frequencies): only for
     steps that need no STFT values, such as the onset and downbeat processors' (no phase)."""
 
-    CHUNK = 512  # frames per FFT call: 16 MB of float64 at 4096 samples
+    CHUNK = 128  # frames per FFT call: ~12 MB of temporaries at 4096 samples
 
     def __init__(self, frames, stft) -> None:
         if stft.fft_size is not None or stft.circular_shift or frames.end != "normal" or frames.num_frames:
@@ -312,6 +339,7 @@ class OnsetAndBeat:
             spec = spectrogram(sig)
             on_parts.append(on_rest(spec))
             db_parts.append(db_rest(spec))
+            del spec  # before the next frame size's (57 MB at 4096 samples for 70 s): a smaller peak to fault in
         onset, beat = self.on_stack(on_parts), self.db_stack(db_parts)
         for step in self.on_tail:
             onset = step(onset)
