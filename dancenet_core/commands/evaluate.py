@@ -20,5 +20,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--temperature", type=float, default=None, help="sampling temperature of the GMM models")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--variants", nargs="*", default=None,
-                   help="a subset of the models (default: all; none: only the shipped weights and the real dances)")
+                   help="a subset of the models (default: all; the flag with no names: only the shipped weights "
+                   "and the real dances)")
     p.set_defaults(handler=comparison.compare)

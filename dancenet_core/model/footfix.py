@@ -2,7 +2,8 @@
 
 Three temporal convs (kernel 3, dilations 1, 3, 9) read the lower body's rotations (root channels and
 the legs), the toe-end positions and the foot contacts, and output an increment to the lower-body
-rotations; the paper chose this over IK because predicted contacts are not accurate enough for IK (85-90%).
+rotations and the root's height and tilt (not its travel: see `FootChannels.TRAVEL`); the paper chose this
+over IK because predicted contacts are not accurate enough for IK (85-90%).
 All channels are in the dance model's normalised feature space.
 
 Trained by `training/footfix.py` (`dancenet train footfix`), which says how and what it achieves.
@@ -102,7 +103,7 @@ class FootFixer:
     def __call__(self, features: np.ndarray) -> np.ndarray:
         """Unnormalised features [T, D] -> the same with the lower body corrected and no toe below the floor."""
         x = self.norm.normalize(features)
-        x[:, self.ch.lower] += self.model(torch.tensor(x[None, :, self.ch.inputs]))[0].numpy()
+        x[:, self.ch.corrected] += self.model(torch.tensor(x[None, :, self.ch.inputs]))[0].numpy()
         out = self.norm.denormalize(x)
         out[:, 1] += self.floor_lift(x)
         return out
@@ -123,7 +124,7 @@ class FootFixer:
         try:
             layout = FeatureLayout(d["num_joints"], d["num_end_sites"])
             ch = FootChannels.for_layout(layout)
-            model = FootConstraintModel(len(ch.inputs), len(ch.lower))
+            model = FootConstraintModel(len(ch.inputs), len(ch.corrected))
             model.load_state_dict(d["state_dict"])
             norm = Normalizer(np.asarray(d["mean"]), np.asarray(d["std"]), np.asarray(d["constant"]))
             return cls(model, norm, layout, Skeleton(np.asarray(d["skeleton_offsets"])))

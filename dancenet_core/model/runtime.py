@@ -117,9 +117,13 @@ class RuntimeBundle:
 class FootChannels:
     """Where the Foot Constraint Model's inputs and outputs sit in a frame's feature vector."""
 
-    lower: np.ndarray  # root channels + leg joint rotations (what gets corrected)
+    lower: np.ndarray  # root channels + leg joint rotations (what the toe kinematics read)
     toes: np.ndarray  # toe-end positions
     contacts: np.ndarray
+
+    # The root's travel within `lower`: dx, dz, dyaw. The model leaves them alone so that cleaning the feet
+    # never changes where the dancer goes: a model free to change them halved the ground covered (issue 13).
+    TRAVEL = (0, 2, 3)
 
     @classmethod
     def for_layout(cls, layout: FeatureLayout) -> FootChannels:
@@ -132,6 +136,16 @@ class FootChannels:
     @property
     def inputs(self) -> np.ndarray:
         return np.concatenate([self.lower, self.toes, self.contacts])
+
+    @property
+    def steered(self) -> np.ndarray:
+        """Positions within `lower` of the channels the model corrects (all but the root's travel)."""
+        return np.delete(np.arange(len(self.lower)), self.TRAVEL)
+
+    @property
+    def corrected(self) -> np.ndarray:
+        """The feature channels the model's output is added to."""
+        return self.lower[self.steered]
 
 
 def floor_lift(low: np.ndarray) -> np.ndarray:
@@ -156,7 +170,7 @@ class RuntimeFootFixer:
     def __call__(self, features: np.ndarray) -> np.ndarray:
         """Unnormalised features [T, D] -> the same with the lower body corrected and no toe below the floor."""
         x = self.norm.normalize(features)
-        x[:, self.ch.lower] += self.net(x[:, self.ch.inputs])
+        x[:, self.ch.corrected] += self.net(x[:, self.ch.inputs])
         out = self.norm.denormalize(x)
         out[:, 1] += self.floor_lift(x)
         return out
@@ -177,11 +191,18 @@ class RuntimeFootFixer:
         hint = "reinstall the package or use --no-footfix"
         arrays, meta = read_arrays(path, "Foot Constraint Model weights", hint)
         try:
-            return cls(NumpyFootNet(_group(arrays, "state")), _normalizer(arrays),
-                       FeatureLayout(meta["num_joints"], meta["num_end_sites"]), Skeleton(arrays["skeleton_offsets"]),
-                       meta.get("info"))
+            fixer = cls(NumpyFootNet(_group(arrays, "state")), _normalizer(arrays),
+                        FeatureLayout(meta["num_joints"], meta["num_end_sites"]), Skeleton(arrays["skeleton_offsets"]),
+                        meta.get("info"))
         except (KeyError, TypeError) as e:
             raise DanceNetError(f"{path} is not a Foot Constraint Model weights file ({first_line(e)}); {hint}") from e
+        (w_in, _, _), (w_out, _, _) = fixer.net.layers[0], fixer.net.layers[-1]
+        if (w_in.shape[0], w_out.shape[1]) != (3 * len(fixer.ch.inputs), len(fixer.ch.corrected)):
+            # Before issue 13's travel fix the model also wrote the root's travel: such a file cannot be used.
+            raise DanceNetError(f"{path} is a Foot Constraint Model for other channels ({w_in.shape[0] // 3} in, "
+                                f"{w_out.shape[1]} out; this version needs {len(fixer.ch.inputs)} in, "
+                                f"{len(fixer.ch.corrected)} out); {hint}")
+        return fixer
 
 
 class RuntimeStyleModel(StyleClassifier):

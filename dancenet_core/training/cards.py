@@ -392,5 +392,9 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
             f"{footfix_info['ours']['test_mse']:.4f}, baseline (FC + LSTM + FC) "
             f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
             f"uncorrected {footfix_info['ours']['test_mse_without_model']:.4f}.",
+            f"- Trained {footfix_info['steps']} steps with sliding weight "
+            f"{footfix_info['contact_weights']['slide_weight']:g} on {footfix_info['dancenet_dances']} of "
+            "DanceNet's dances to the training songs; it corrects the legs and the pelvis' height and tilt, "
+            "never the root's travel (docs/training.md has the sweep of the sliding weight on the validation songs).",
         ]
     return "\n".join(lines + (extra or [])) + "\n"

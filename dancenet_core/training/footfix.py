@@ -81,6 +81,12 @@ def simulate_sliding(x: np.ndarray, ch: FootChannels, rng: np.random.Generator) 
     y[..., cols] += rng.normal(0, rng.uniform(0.02, 0.1), y[..., cols].shape).astype(np.float32)
     return y
 
+def lower_increment(inc: torch.Tensor, ch: FootChannels) -> torch.Tensor:
+    """The model's output [B, T, C] placed in the lower-body channels [B, T, L], zero on the root's travel."""
+    full = inc.new_zeros(*inc.shape[:-1], len(ch.lower))
+    full[..., ch.steered] = inc
+    return full
+
 def smoothness(y: torch.Tensor) -> torch.Tensor:
     return ((y[:, 2:] - 2 * y[:, 1:-1] + y[:, :-2]) ** 2).mean()
 
@@ -166,17 +172,17 @@ def train_foot_model(
     for _ in range(steps):
         clean = _windows(train, batch, window, rng)
         noisy = simulate_sliding(clean, ch, rng)
-        pred = torch.tensor(noisy[..., ch.lower]) + model(torch.tensor(noisy[..., ch.inputs]))
+        pred = torch.tensor(noisy[..., ch.lower]) + lower_increment(model(torch.tensor(noisy[..., ch.inputs])), ch)
         loss = ((pred - torch.tensor(clean[..., ch.lower])) ** 2).mean() + 0.1 * smoothness(pred)
         if contact is not None:
             gen = torch.tensor(_windows(contact.dances, batch, window, rng))
-            loss = loss + contact.loss(gen[..., ch.lower], model(gen[..., ch.inputs]))
+            loss = loss + contact.loss(gen[..., ch.lower], lower_increment(model(gen[..., ch.inputs]), ch))
         opt.zero_grad()
         loss.backward()
         opt.step()
     model.eval()
     with torch.no_grad():
-        pred = torch.tensor(test_in[..., ch.lower]) + model(torch.tensor(test_in[..., ch.inputs]))
+        pred = torch.tensor(test_in[..., ch.lower]) + lower_increment(model(torch.tensor(test_in[..., ch.inputs])), ch)
         mse = float(((pred - torch.tensor(test_clean[..., ch.lower])) ** 2).mean())
     untouched = float(((test_in[..., ch.lower] - test_clean[..., ch.lower]) ** 2).mean())
     return {"train_seconds": time.time() - t0, "test_mse": mse, "test_mse_without_model": untouched}
@@ -209,9 +215,9 @@ def train_footfix(args: FootfixSettings) -> dict:
     contact = ContactTraining(dances, ToeKinematics(bundle.skeleton, norm, ch), slide_weight=args.slide_weight,
                               root_weight=args.root_weight)
     generation_seconds = time.time() - t0
-    ours = FootConstraintModel(len(ch.inputs), len(ch.lower))
+    ours = FootConstraintModel(len(ch.inputs), len(ch.corrected))
     res_ours = train_foot_model(ours, train, test, ch, args.steps, contact=contact)
-    base = LstmBaseline(len(ch.inputs), len(ch.lower))
+    base = LstmBaseline(len(ch.inputs), len(ch.corrected))
     res_base = train_foot_model(base, train, test, ch, args.steps, contact=contact)
     info = {"steps": args.steps, "ours": res_ours, "baseline_lstm": res_base,
             "dancenet_dances": len(dances), "dancenet_generation_seconds": generation_seconds,

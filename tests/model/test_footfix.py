@@ -26,11 +26,14 @@ def test_channels_cover_root_legs_toes_and_contacts() -> None:
     assert ch.contacts.tolist() == [183, 184]
     assert ch.toes.min() >= LAYOUT.end_effectors.start
     assert ch.toes.max() < LAYOUT.end_effectors.start + 6
+    travel = [LAYOUT.root.start + k for k in (0, 2, 3)]  # root dx, dz, dyaw: where the dancer goes
+    assert set(ch.corrected) == set(ch.lower) - set(travel)
+    np.testing.assert_array_equal(ch.lower[ch.steered], ch.corrected)
 
 
 def test_model_is_three_dilated_convs_that_see_the_future() -> None:
     ch = FootChannels.for_layout(LAYOUT)
-    m = FootConstraintModel(len(ch.inputs), len(ch.lower))
+    m = FootConstraintModel(len(ch.inputs), len(ch.corrected))
     convs = [c for c in m.net if isinstance(c, torch.nn.Conv1d)]
     assert [c.dilation[0] for c in convs] == [1, 3, 9]
     assert all(c.kernel_size[0] == 3 for c in convs)
@@ -38,7 +41,7 @@ def test_model_is_three_dilated_convs_that_see_the_future() -> None:
     y = m(x)
     x2 = x.clone()
     x2[:, 60] += 1.0
-    assert y.shape == (1, 80, len(ch.lower))
+    assert y.shape == (1, 80, len(ch.corrected))
     assert not torch.allclose(m(x2)[:, 50], y[:, 50])
 
 
@@ -62,21 +65,25 @@ def test_training_on_simulated_sliding_beats_doing_nothing() -> None:
     noisy = simulate_sliding(np.stack(test)[:, :200], ch, np.random.default_rng(0))
     assert not np.allclose(noisy[..., ch.lower], np.stack(test)[:, :200, ch.lower])
     np.testing.assert_array_equal(noisy[..., ch.contacts], np.stack(test)[:, :200, ch.contacts])
-    n_in, n_out = len(ch.inputs), len(ch.lower)
+    n_in, n_out = len(ch.inputs), len(ch.corrected)
     for model in (FootConstraintModel(n_in, n_out, 32), LstmBaseline(n_in, n_out, 32)):
         res = train_foot_model(model, train, test, ch, steps=60, window=100, batch=8)
         assert res["test_mse"] < res["test_mse_without_model"]
 
 
-def test_shipped_fixer_loads_and_keeps_upper_body() -> None:
+def test_shipped_fixer_loads_and_keeps_upper_body_and_path() -> None:
+    """The foot model changes the legs, the pelvis' height and tilt; never the upper body, nor where the
+    dancer goes (the root's steps and turns), so the decoded path is the same."""
     fixer = FootFixer.load(WEIGHTS)
     feats = _dances(1, 2)[0]
     fixed = fixer(feats)
     ch = FootChannels.for_layout(LAYOUT)
-    others = np.setdiff1d(np.arange(LAYOUT.size), ch.lower)
+    others = np.setdiff1d(np.arange(LAYOUT.size), ch.corrected)
     np.testing.assert_allclose(fixed[:, others], feats[:, others], atol=1e-5)
     assert np.isfinite(fixed).all()
-    assert not np.allclose(fixed[:, ch.lower], feats[:, ch.lower])
+    assert not np.allclose(fixed[:, ch.corrected], feats[:, ch.corrected])
+    path0, path1 = (decode(f, 25.0).root_positions[:, [0, 2]] for f in (feats, fixed))
+    np.testing.assert_allclose(path1, path0, atol=1e-5)
 
 
 def _gliding(n: int, seed: int, frames: int = 150) -> list[Motion]:
@@ -137,7 +144,7 @@ def test_contact_loss_teaches_the_model_to_pin_sliding_feet() -> None:
     norm = Normalizer.fit(train, binary=LAYOUT.contacts)
     ch = FootChannels.for_layout(LAYOUT)
     torch.manual_seed(0)  # the initial weights, whatever ran before
-    model = FootConstraintModel(len(ch.inputs), len(ch.lower), 32)
+    model = FootConstraintModel(len(ch.inputs), len(ch.corrected), 32)
     contact = ContactTraining([norm.normalize(x) for x in train], ToeKinematics(DEFAULT_SKELETON, norm, ch))
     train_foot_model(model, [norm.normalize(x) for x in train], [norm.normalize(held_out)], ch, steps=80, window=100,
                 batch=8, contact=contact)

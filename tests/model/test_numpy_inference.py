@@ -247,3 +247,17 @@ def test_runtime_files_never_unpickle(tmp_path: Path) -> None:
         with pytest.raises(DanceNetError, match=message) as e:
             RuntimeBundle.load(tmp_path / f"{name}.npz")
         assert "\n" not in str(e.value)
+
+
+def test_a_foot_model_for_other_channels_is_refused_in_one_line(tmp_path: Path) -> None:
+    """A foot model file whose network writes other channels (one from before the root's travel was kept out
+    of its reach, issue 13) is a one-line error at loading, not a broadcast error in the middle of a dance."""
+    fixer = RuntimeFootFixer.load()
+    w, b = fixer.net.state["net.4.weight"], fixer.net.state["net.4.bias"]
+    extra = len(fixer.ch.lower) - len(fixer.ch.corrected)  # the travel channels it used to write too
+    state = fixer.net.state | {"net.4.weight": np.concatenate([w, w[:extra]]), "net.4.bias": np.r_[b, b[:extra]]}
+    fixer.net.state = state
+    fixer.save(tmp_path / "old.npz")
+    with pytest.raises(DanceNetError, match="for other channels") as e:
+        RuntimeFootFixer.load(tmp_path / "old.npz")
+    assert "\n" not in str(e.value)
