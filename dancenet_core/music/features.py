@@ -283,6 +283,7 @@ def _executor(workers: int | None, jobs: int) -> Executor:
 
 
 def _worker_start() -> None:
+    """Each analysis worker's set-up (the pool's initializer): what suits a process that lives for one analysis."""
     _keep_freed_memory()
     _one_blas_thread()
 
