@@ -278,14 +278,8 @@ def _executor(workers: int | None, jobs: int) -> Executor:
         workers = default_workers()
     workers = min(workers, jobs)
     if workers > 1 and "fork" in mp.get_all_start_methods():
-        return ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"), initializer=_worker_start)
+        return ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"), initializer=_keep_freed_memory)
     return _InlineExecutor()
-
-
-def _worker_start() -> None:
-    """Each analysis worker's set-up (the pool's initializer): what suits a process that lives for one analysis."""
-    _keep_freed_memory()
-    _one_blas_thread()
 
 
 def _keep_freed_memory() -> None:
@@ -299,31 +293,6 @@ def _keep_freed_memory() -> None:
         return
     mallopt(-4, 0)  # M_MMAP_MAX: every allocation from the heap, which glibc reuses
     mallopt(-1, 2**31 - 1)  # M_TRIM_THRESHOLD: never hand the heap's free top back
-
-
-def _one_blas_thread() -> None:
-    """Worker start-up. OpenBLAS runs each large matrix product on a thread a core, and its idle threads
-    spin between products: with a worker process a core they only took CPU from the other worker (~10 %
-    of the cold analysis' CPU on 2 cores). A product's rounding depends on how OpenBLAS splits it, so the
-    workers' features no longer depend on the core count (they differ from a 2-thread run by up to 0.002,
-    beats the same). OpenBLAS reads its thread count from the environment only when loaded, so each one
-    this process has loaded (numpy's, scipy's) is told by its own call; by hand because threadpoolctl,
-    which does this, is no dependency of the analysis."""
-    try:
-        with open("/proc/self/maps") as f:  # Linux, where workers fork
-            paths = {line.split(maxsplit=5)[-1].strip() for line in f if "openblas" in line.rsplit("/", 1)[-1]}
-    except OSError:
-        return
-    for path in paths:
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for name in ("openblas_set_num_threads", "openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
-                     "scipy_openblas_set_num_threads64_"):  # plain, 64-bit-index and numpy 2's builds
-            if hasattr(lib, name):
-                getattr(lib, name)(1)
-                break
 
 
 class _InlineExecutor(Executor):

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import soundfile as sf
-from made_up import click_track, music
+from made_up import REPO, click_track, music
 
 from dancenet_core.errors import DanceNetError
 from dancenet_core.music import features as F
@@ -77,6 +80,32 @@ def test_blocks_stitch_like_one_shot(monkeypatch: pytest.MonkeyPatch) -> None:
     assert t == 95
     np.testing.assert_allclose(a.features[:, F.CHROMA_COLS], chroma[:t], atol=1e-6)
     np.testing.assert_allclose(a.mel, mel[:t], atol=1e-5)
+
+
+_SAME_EITHER_WAY = """
+from pathlib import Path
+import numpy as np
+from made_up import music
+from dancenet_core.music import features as F
+from dancenet_core.music.audio import MADMOM_SAMPLE_RATE, Audio
+x = music(9.53, seed=4).astype(np.float32)
+F.BLOCK_S, F.CONTEXT_S = 3, 1
+audio = lambda: Audio(x, MADMOM_SAMPLE_RATE, MADMOM_SAMPLE_RATE, 1, Path("test.wav"))
+forked, inline = F.analyze_audio(audio(), workers=2), F.analyze_audio(audio(), workers=1)
+print(np.array_equal(forked.features, inline.features), np.array_equal(forked.beat_times, inline.beat_times))
+"""
+
+
+def test_worker_processes_give_the_in_process_answer() -> None:
+    """The command line analyses in worker processes, Blender in its own process: the features must be the
+    same to the bit, or one seed would dance differently in the two (sampling magnifies any difference). In a
+    process with two BLAS threads, since how a matrix product is split between threads changes its rounding."""
+    env = {k: v for k, v in os.environ.items() if k != "OMP_NUM_THREADS"} | {
+        "OPENBLAS_NUM_THREADS": "2", "PYTHONPATH": os.pathsep.join([str(REPO), str(REPO / "tests")])}
+    out = subprocess.run([sys.executable, "-c", _SAME_EITHER_WAY], capture_output=True, text=True, env=env,
+                         cwd=REPO, timeout=300, check=False)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["True", "True"]
 
 
 class _FakeNet:
