@@ -318,13 +318,15 @@ def validate(args: argparse.Namespace) -> int:
     smoothing dances to them (foot model on, as shipped) and is measured as `evaluate` measures, against the
     real validation dances and the dances the models trained on."""
     t0 = time.perf_counter()
+    if not args.weights and not args.curve:
+        raise DanceNetError("give the DanceNet weights files to compare, or --curve RUN for a run's learning curve")
     data = args.data or default_data_dir()
     split, pairs, beats = split_with_beats(data, part="validation")
     if not split.get("validation"):
         raise DanceNetError("the song split names no validation songs (weights/song_split.json)")
     style_net = MotionStyleModel.load()
     val = [pairs[s] for s in split["validation"]]
-    first = DanceNetBundle.load(args.weights[0])
+    first = DanceNetBundle.load(args.weights[0] if args.weights else DEFAULT_BUNDLE)
     fps = first.model.cfg.fps
     real = DanceSet("real", "Real dances (validation songs)", [decode(p.motion, fps, first.skeleton) for p in val],
                     [p.style for p in val], [beats[p.seq] for p in val])
