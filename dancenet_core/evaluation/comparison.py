@@ -342,7 +342,7 @@ def validate(args: argparse.Namespace) -> int:
         for temperature in args.temperatures:
             for smoothing in args.smoothing:
                 name = f"{path} T={temperature} smooth={smoothing}"
-                rows.append(dance_row(name, f"{Path(path).parent.name or path} (K={k}), T {temperature}, "
+                rows.append(dance_row(name, f"{run_label(Path(path), bundle)} (K={k}), T {temperature}, "
                                       f"smoothing {smoothing}", bundle, val, beats, args.takes, temperature,
                                       footfix=True, smoothing=smoothing))
                 print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
@@ -356,6 +356,13 @@ def validate(args: argparse.Namespace) -> int:
     write_text(args.out / "validation.json", json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
     print(md)
     return 0
+
+
+def run_label(path: Path, bundle: DanceNetBundle) -> str:
+    """A weights file's name in a table: its run folder, and the step for a run's snapshot."""
+    if path.parent.name == "snapshots":
+        return f"{path.parent.parent.name}, step {bundle.info.get('steps')}"
+    return path.parent.name or str(path)
 
 
 def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net: MotionStyleModel, real: DanceSet,

@@ -243,8 +243,11 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
             log.flush()
         if rank == 0 and args.snapshot_every and step % args.snapshot_every == 0:
             # Kept weights along the way: the learning curve (held-out FID_k against time) is measured on them.
+            # Each carries its held-out loss, so a snapshot chosen for shipping has its card's figures.
             (out / "snapshots").mkdir(exist_ok=True)
-            bundle().save(out / "snapshots" / f"step{step:06d}.pt")
+            snapshot = bundle()
+            snapshot.info |= held_out_loss()
+            snapshot.save(out / "snapshots" / f"step{step:06d}.pt")
         if rank == 0 and step % args.checkpoint_every == 0:
             save_weights({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(), "step": step,
                           "elapsed": elapsed, "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()},

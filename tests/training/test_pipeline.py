@@ -36,12 +36,16 @@ def _pair(seed: int, style: str, frames: int = 300) -> PairedSequence:
 @pytest.fixture(scope="module")
 def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("run")
-    settings = TrainSettings(out=out, minutes=5, steps=4, batch=2, window=100, log_every=2, checkpoint_every=2)
+    settings = TrainSettings(out=out, minutes=5, steps=4, batch=2, window=100, log_every=2, checkpoint_every=2,
+                             snapshot_every=2)
     path = train(settings, *_tiny_dataset())
     log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     assert log[-1]["done"]
     assert np.isfinite(log[-1]["test_loss"])
     assert (out / "checkpoint.pt").is_file()
+    # A snapshot carries its step's held-out loss, so one chosen for shipping has its card's figures.
+    snapshot = DanceNetBundle.load(out / "snapshots" / "step000004.pt")
+    assert snapshot.info["steps"] == 4 and snapshot.info["test_loss"] == pytest.approx(log[-1]["test_loss"])
     return path
 
 
