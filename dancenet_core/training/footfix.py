@@ -81,8 +81,10 @@ def simulate_sliding(x: np.ndarray, ch: FootChannels, rng: np.random.Generator) 
     y[..., cols] += rng.normal(0, rng.uniform(0.02, 0.1), y[..., cols].shape).astype(np.float32)
     return y
 
-def lower_increment(inc: torch.Tensor, ch: FootChannels) -> torch.Tensor:
-    """The model's output [B, T, C] placed in the lower-body channels [B, T, L], zero on the root's travel."""
+def lower_increment(model: nn.Module, x: torch.Tensor, ch: FootChannels) -> torch.Tensor:
+    """The model's correction of windows x [B, T, D] in the lower-body channels [B, T, L], zero on the root's
+    travel (which the model does not write)."""
+    inc = model(x[..., ch.inputs])
     full = inc.new_zeros(*inc.shape[:-1], len(ch.lower))
     full[..., ch.steered] = inc
     return full
@@ -171,18 +173,18 @@ def train_foot_model(
     model.train()
     for _ in range(steps):
         clean = _windows(train, batch, window, rng)
-        noisy = simulate_sliding(clean, ch, rng)
-        pred = torch.tensor(noisy[..., ch.lower]) + lower_increment(model(torch.tensor(noisy[..., ch.inputs])), ch)
+        noisy = torch.tensor(simulate_sliding(clean, ch, rng))
+        pred = noisy[..., ch.lower] + lower_increment(model, noisy, ch)
         loss = ((pred - torch.tensor(clean[..., ch.lower])) ** 2).mean() + 0.1 * smoothness(pred)
         if contact is not None:
             gen = torch.tensor(_windows(contact.dances, batch, window, rng))
-            loss = loss + contact.loss(gen[..., ch.lower], lower_increment(model(gen[..., ch.inputs]), ch))
+            loss = loss + contact.loss(gen[..., ch.lower], lower_increment(model, gen, ch))
         opt.zero_grad()
         loss.backward()
         opt.step()
     model.eval()
     with torch.no_grad():
-        pred = torch.tensor(test_in[..., ch.lower]) + lower_increment(model(torch.tensor(test_in[..., ch.inputs])), ch)
+        pred = torch.tensor(test_in[..., ch.lower]) + lower_increment(model, torch.tensor(test_in), ch)
         mse = float(((pred - torch.tensor(test_clean[..., ch.lower])) ** 2).mean())
     untouched = float(((test_in[..., ch.lower] - test_clean[..., ch.lower]) ** 2).mean())
     return {"train_seconds": time.time() - t0, "test_mse": mse, "test_mse_without_model": untouched}
