@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Run the test-suite inside the venv (bpy 4.5 LTS, Python 3.11), then the add-on's tests again in the second venv
-# (bpy 5.2 LTS, Python 3.13, numpy 2, no torch), with Blender's user folders in a scratch directory.
+# (bpy 5.2 LTS, Python 3.13, numpy 2, no torch) with the evaluation's metrics (scipy 1.18), with Blender's user folders in a scratch directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup_blender52.sh  # first: a missing Python 3.13 is said before the long run, not after
@@ -17,4 +17,5 @@ mkdir -p "$HOME"
 .venv/bin/python -m pytest -q -p no:cacheprovider "$@" tests
 .venv-blender52/bin/python -c "import bpy, numpy; print('tests: the add-on on bpy', bpy.app.version_string, \
 '(Python 3.13, numpy', numpy.__version__ + ')')"
-.venv-blender52/bin/python -m pytest -q -p no:cacheprovider "$@" tests/addon tests/test_install.py
+.venv-blender52/bin/python -m pytest -q -p no:cacheprovider "$@" tests/addon tests/test_install.py \
+    tests/evaluation/test_metrics.py

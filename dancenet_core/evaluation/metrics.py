@@ -123,7 +123,7 @@ def frechet_distance(real: np.ndarray, gen: np.ndarray) -> float:
         raise ValueError(f"need two sets of >= 2 rows with the same width, got {real.shape} and {gen.shape}")
     mu_r, mu_g = real.mean(axis=0), gen.mean(axis=0)
     s_r, s_g = np.atleast_2d(np.cov(real, rowvar=False)), np.atleast_2d(np.cov(gen, rowvar=False))
-    covmean, _ = linalg.sqrtm(s_r @ s_g, disp=False)
+    covmean = linalg.sqrtm(s_r @ s_g)  # no `disp`: scipy 1.18 removed it, and the default returns the same root
     if not np.isfinite(covmean).all():
         offset = np.eye(len(s_r)) * FID_EPS
         covmean = linalg.sqrtm((s_r + offset) @ (s_g + offset))
