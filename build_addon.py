@@ -8,7 +8,9 @@ them when the extension is installed: nothing is downloaded or installed at run 
 Blender ships it, and the other wheels are resolved against the numpy of each Python's Blender.
 
 Wheels come from the package index, unmodified, at the versions of constraints.txt, and are cached under
-.cache/wheels/ (gitignored); the project's version comes from pyproject.toml.
+.cache/wheels/ (gitignored); the project's version comes from pyproject.toml. The project's own wheel leaves out
+the training checkpoints (`.pt`), which generation never reads (it loads the `.npz` beside them). NOTICE and
+LICENSE go at the zip's root: the extension carries madmom's non-commercial models and weights with no licence.
 
     python build_addon.py [--out DIR] [--platform linux-x64 ...]
 """
@@ -41,6 +43,8 @@ PYTHONS = ("3.11", "3.13")
 BUNDLED_WITH_BLENDER = frozenset({"numpy"})
 _SKIP_DIRS = frozenset({"__pycache__", ".pytest_cache", ".ruff_cache"})
 _SKIP_SUFFIXES = frozenset({".pyc", ".pyo"})
+_TERMS = ("NOTICE", "LICENSE")  # what ships under which licence, beside the add-on
+_TRAINING_ONLY = re.compile(r"^dancenet_core/weights/[^/]+\.pt$")  # checkpoints: torch, never read by generation
 # How `pip download` names each file of the resolution, new or found in the folder.
 _DOWNLOADED = re.compile(r"^(?:Saved|File was already downloaded) (.+\.whl)$", re.MULTILINE)
 _MARKER = re.compile(r'^python_version\s*(<|<=|>|>=|==)\s*"(\d+)\.(\d+)"$')
@@ -121,7 +125,24 @@ def project_wheel(out_dir: Path) -> Path:
          str(out_dir), str(ROOT)],
         check=True,
     )  # fmt: skip
-    return next(out_dir.glob("dancenet-*.whl"))
+    return without_checkpoints(next(out_dir.glob("dancenet-*.whl")))
+
+
+def without_checkpoints(wheel: Path) -> Path:
+    """The wheel rewritten without its `.pt` checkpoints (and their RECORD lines): about 8 MB that the torch-free
+    runtime never opens, per zip and again once installed."""
+    slim = wheel.with_suffix(".slim")
+    with zipfile.ZipFile(wheel) as src, zipfile.ZipFile(slim, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            if _TRAINING_ONLY.match(info.filename):
+                continue
+            data = src.read(info)
+            if info.filename.endswith(".dist-info/RECORD"):
+                kept = (r for r in data.decode().splitlines(keepends=True) if not _TRAINING_ONLY.match(r.split(",")[0]))
+                data = "".join(kept).encode()
+            dst.writestr(info, data)
+    slim.replace(wheel)
+    return wheel
 
 
 def manifest_for(platform: str, wheels: list[str]) -> str:
@@ -153,6 +174,8 @@ def build(out_dir: Path = ROOT / "dist", platforms: list[str] | None = None) -> 
                         z.writestr(rel, manifest_for(platform, [w.name for w in wheels]))
                     else:
                         z.write(f, rel)
+                for name in _TERMS:
+                    z.write(ROOT / name, name)
                 for w in wheels:  # already compressed
                     z.write(w, f"wheels/{w.name}", compress_type=zipfile.ZIP_STORED)
             paths.append(path)
