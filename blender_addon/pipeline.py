@@ -1,7 +1,8 @@
 """From the user's settings to a dancing rig: validate, generate (on a worker thread or inline), apply.
 
 Nothing in the scene changes before a result is applied, and only `apply_result` (main thread) touches
-bpy data, so a cancelled or failed generation leaves the file exactly as it was.
+bpy data, so a cancelled or failed generation leaves the file exactly as it was; a failure while applying
+is undone (`rollback`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import bpy
 from dancenet_core.constants import DEFAULT_TEMPERATURE
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, rig
+from . import bonemap, rig, rollback
 from .shapemap import RestBone
 
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
@@ -172,6 +173,18 @@ def resolve_map(
     return bonemap.resolve(chosen, [b.name for b in rig_obj.data.bones], rig_obj.name)
 
 
+def check_rig(rig_obj: bpy.types.Object) -> None:
+    """DanceNetError for a rig that cannot be posed into a dance: its world matrix (its own scale, or a parent's)
+    flattens it or is not finite, so no bone's rotation can be solved for."""
+    import numpy as np
+
+    turn = np.array(rig_obj.matrix_world)[:3, :3]
+    if not np.isfinite(turn).all() or np.linalg.svd(turn, compute_uv=False).min() < 1e-6:
+        raise DanceNetError(f"Armature '{rig_obj.name}' has a zero scale ({', '.join(f'{v:g}' for v in rig_obj.scale)}"
+                            ", or a parent's flattens it): give it a scale other than 0 (Object Properties > "
+                            "Transform), then generate again")
+
+
 def rest_bones(rig_obj: bpy.types.Object) -> list[RestBone]:
     """The armature's bones at rest in world space (Z up), for mapping by the skeleton's shape."""
     world = rig_obj.matrix_world
@@ -219,6 +232,7 @@ def prepare(scene: bpy.types.Scene) -> Plan:
         if target is None or target.type != "ARMATURE":
             raise DanceNetError("No target armature: pick one in the DanceNet panel, or choose New Rig")
         placement.armature = target.name
+        check_rig(target)
         from . import keyframes  # needs scipy (and the core's FK): loaded on first use
 
         placement.bone_map = _chosen_map(props)
@@ -482,8 +496,23 @@ def _keep_users_action(target: bpy.types.Object) -> str | None:
 
 
 def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
-    """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take."""
+    """Put a generation result into the scene: song strip, frame range, markers, rig, one action per take.
 
+    Any failure on the way (one line, DanceNetError) leaves the file as it was: what was added is removed and
+    what was changed is set back (`rollback`), whichever step failed.
+    """
+    target = bpy.data.objects.get(plan.placement.armature) if plan.placement.armature is not None else None
+    with rollback.undone_on_failure(context, target):
+        try:
+            return _apply_result(context, plan, result)
+        except DanceNetError as e:
+            raise DanceNetError(f"{e}; nothing was changed" if "nothing was changed" not in str(e) else str(e)) from e
+        except Exception as e:
+            raise DanceNetError(f"{error_message(e)}; nothing was changed") from e
+
+
+def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
+    """apply_result's steps, unguarded."""
     from . import keyframes  # needs scipy (the core's FK): loaded on first use
 
     scene = context.scene
@@ -493,6 +522,7 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
         target = bpy.data.objects.get(place.armature)
         if target is None or target.type != "ARMATURE":
             raise DanceNetError(f"The armature '{place.armature}' is gone; nothing was changed")
+        check_rig(target)  # checked before the dance was made too, but the rig may have changed since
         bone_map, skipped = resolve_map(target, place.bone_map)
     strip = None
     if place.strip is not None:
