@@ -1,11 +1,22 @@
-"""Shared test fixtures: where the real data lives (skipped cleanly when it is absent)."""
+"""Shared test fixtures: where the real data lives (skipped cleanly when it is absent), and a suite that runs the
+same whatever the caller's environment says about caches and workers."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
-from made_up import data_root
+
+# Where caches go and how many workers run are the user's settings, not the suite's: a desktop's XDG_CACHE_HOME
+# or a developer's DANCENET_CACHE must not change what a test sees. Left out before dancenet_core is imported
+# (it reads them on import); DANCENET_DATA stays, it says where the real data is, and NUMBA_CACHE_DIR only
+# where compiled code is kept.
+CALLER_SETTINGS = ("XDG_CACHE_HOME", "LOCALAPPDATA", "DANCENET_CACHE", "DANCENET_WORKERS")
+for _name in CALLER_SETTINGS:
+    os.environ.pop(_name, None)
+
+from made_up import data_root  # noqa: E402  (after the settings above are left out)
 
 
 @pytest.fixture(scope="session")

