@@ -7,15 +7,17 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
-from ..atomic import write_text
+from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
 from ..continuation import keep_original
 from ..errors import DanceNetError
-from ..generate import DEFAULT_TEMPERATURE, generate_dance
+from ..generate import DEFAULT_TEMPERATURE, GenerationResult, generate_dance
+from ..model.runtime import DEFAULT_RUNTIME, META
 from ..motion import FRAME_RATES, Motion
-from ..outputs import check_folder_writable, refuse_overwrite, safe_stem
+from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..render import render_motion
 from ..rootmotion import ROOT_MODES, apply_mode, read_dance_bvh, write_root_bone_bvh
 
@@ -23,7 +25,8 @@ from ..rootmotion import ROOT_MODES, apply_mode, read_dance_bvh, write_root_bone
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (created if missing)")
-    p.add_argument("--style", default="auto", help="auto (the music's style) or a style the model knows")
+    p.add_argument("--style", default="auto",
+                   help=f"auto (the music's style) or a style the model knows; the shipped one: {_shipped_styles()}")
     p.add_argument("--seed", type=int, default=0, help="same seed, same dance")
     p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
                    help=f"variety of the dance, 0 = most likely (default {DEFAULT_TEMPERATURE})")
@@ -47,6 +50,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
     p.add_argument("--overwrite", action="store_true", help="replace outputs already in the folder")
     p.set_defaults(handler=run)
+
+
+def _shipped_styles() -> str:
+    """The shipped model's styles, for --help: read from its metadata alone, so asking for help loads no weights
+    (a damaged file is reported, in one line, when a dance loads it)."""
+    try:
+        with np.load(DEFAULT_RUNTIME) as f:
+            return ", ".join(json.loads(str(f[META]))["config"]["styles"])
+    except (OSError, ValueError, KeyError):
+        return "unreadable (reinstall the package)"
 
 
 def _names(stem: str, takes: int) -> list[str]:
@@ -77,19 +90,21 @@ def run(args: argparse.Namespace) -> int:
     stem = safe_stem(args.song)
     kept = _kept_dance(args)
     check_folder_writable(args.out)
+    remove_leftovers(args.out)
+    outputs = _outputs(args, stem)
     if not args.overwrite:
-        refuse_overwrite(_outputs(args, stem))
+        refuse_overwrite(outputs)
+    # A bar drawn keeps its last state on a line of its own (leave=True ends it with a newline), so the summary
+    # below starts its own line, also where stderr and stdout share a log; a run under `delay` draws none.
     bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}", delay=0.5,
-               leave=False)
+               leave=True)
     state = {"stage": ""}
 
     def progress(stage: str, fraction: float) -> None:
         if stage != state["stage"]:
             state["stage"] = stage
-            bar.set_description_str(stage)
-            bar.n = 0
-        bar.n = int(100 * fraction)
-        bar.refresh()
+            bar.set_description_str(stage, refresh=False)
+        bar.update(int(100 * fraction) - bar.n)  # through update, so tqdm knows what it drew and ends that line
 
     t0 = time.perf_counter()
     try:
@@ -106,18 +121,28 @@ def run(args: argparse.Namespace) -> int:
     elif args.fps is not None:
         result.motions = [m.resampled(args.fps) for m in result.motions]
     result.motions = [apply_mode(m, args.root_motion) for m in result.motions]
+    with claimed_outputs(outputs, args.overwrite) as temp:  # this run's files appear together, or none
+        summary = _write(args, stem, result, temp, t0)
+    print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
+          f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
+    return 0
+
+
+def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: dict[Path, Path],
+           t0: float) -> dict:
+    """Write every output to its temporary path in `temp` (keyed by its final path); returns the summary."""
     write_dance_bvh = write_root_bone_bvh if args.root_motion == "root-bone" else write_bvh
     files = []
     t = time.perf_counter()
     for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-        write_dance_bvh(args.out / f"{name}.bvh", motion)
-        motion.save(args.out / f"{name}.npz")
+        write_dance_bvh(temp[args.out / f"{name}.bvh"], motion)
+        motion.save(temp[args.out / f"{name}.npz"])
         files += [f"{name}.bvh", f"{name}.npz"]
     result.timings["writing_s"] = time.perf_counter() - t
     if args.render:
         t = time.perf_counter()
         for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-            render_motion(motion, args.out / f"{name}.mp4", audio=args.song, audio_start=result.start_s)
+            render_motion(motion, temp[args.out / f"{name}.mp4"], audio=args.song, audio_start=result.start_s)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
     result.timings["total_s"] = time.perf_counter() - t0
@@ -126,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         "style": result.style,
         "style_probabilities": result.style_probabilities,
         "tempo_bpm": round(result.tempo_bpm, 2),
-        "start_s": round(result.start_s, 3),
+        "start_s": round(result.start_s, 3) + 0.0,  # never -0.0 (`--start -0.0`)
         "duration_s": round(result.duration_s, 3),
         "fps": result.motions[0].fps,
         "frames": result.motions[0].num_frames,
@@ -142,7 +167,5 @@ def run(args: argparse.Namespace) -> int:
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
         "files": files,
     }
-    write_text(args.out / f"{stem}.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
-    print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
-          f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
-    return 0
+    write_text(temp[args.out / f"{stem}.json"], json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    return summary
