@@ -1,5 +1,6 @@
-"""`dancenet data build|show|alignment`: build the paired dataset (skeleton fits, music features, the CMU
-clips retargeted), draw a fit beside its source, and score the real dances' timing by data folder."""
+"""`dancenet data build|pack|show|alignment`: build the paired dataset (skeleton fits, music features, the CMU
+clips retargeted), pack its training songs for another machine, draw a fit beside its source, and score the real
+dances' timing by data folder."""
 
 from __future__ import annotations
 
@@ -13,10 +14,12 @@ from tqdm import tqdm
 from ..data.build import MODEL_FPS, build_dataset, dataset_cache_dir, fit_report, fitted_clip, fitted_motion
 from ..data.cmu_dance import read_cmu_manifest
 from ..data.dance_with_melody import load_positions, read_manifest
+from ..data.pack import save_pack
 from ..data.show import draw_fit
 from ..data.split import load_split
 from ..environment import default_data_dir
 from ..evaluation.alignment import alignment_table, report
+from ..evaluation.test_split import split_with_beats
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,9 +34,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     s.add_argument("--data", type=Path, default=None)
     s.add_argument("--out", type=Path, default=Path("frame.png"))
     s.set_defaults(handler=_cmd_show)
+    k = dsub.add_parser("pack", help="the training and validation songs' features in one file, for a machine "
+                                     "without the data folder or madmom (`train dancenet --pack`)")
+    k.add_argument("out", type=Path, help="pack file to write (.npz)")
+    k.add_argument("--data", type=Path, default=None, help="the shared data folder (default: ../shared/data)")
+    k.set_defaults(handler=_cmd_pack)
     a = dsub.add_parser("alignment", help="Beat Align Score of the real dances against their songs, by folder")
     a.add_argument("--data", type=Path, default=None, help="the shared data folder (default: ../shared/data)")
     a.set_defaults(handler=_cmd_alignment)
+
+
+def _cmd_pack(args: argparse.Namespace) -> int:
+    split, by_seq, beats = split_with_beats(args.data or default_data_dir(), part="validation")
+    keep = set(split["train"]) | set(split.get("validation", []))  # never the test songs
+    save_pack([p for p in by_seq.values() if p.seq in keep], args.out, beats)
+    pairs = [p for p in by_seq.values() if p.seq in keep]
+    mb = args.out.stat().st_size / 2**20
+    minutes = sum(len(p.motion) for p in pairs) / MODEL_FPS / 60
+    print(f"{args.out}: {len(pairs)} sequences, {minutes:.1f} min, {mb:.1f} MiB")
+    return 0
 
 
 def _cmd_build(args: argparse.Namespace) -> int:

@@ -12,6 +12,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = comparison.validate.__doc__
     p.add_argument("weights", nargs="*", help="DanceNet weights files (bundles) to compare (none with --curve)")
     p.add_argument("--data", type=Path, default=None, help="shared data folder (default ../shared/data)")
+    p.add_argument("--pack", type=Path, default=None,
+                   help="a training pack (`dancenet data pack`) instead of the data folder (no madmom needed)")
     p.add_argument("--out", type=Path, default=Path("out/validate"))
     p.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
     p.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")

@@ -321,7 +321,7 @@ def validate(args: argparse.Namespace) -> int:
     if not args.weights and not args.curve:
         raise DanceNetError("give the DanceNet weights files to compare, or --curve RUN for a run's learning curve")
     data = args.data or default_data_dir()
-    split, pairs, beats = split_with_beats(data, part="validation")
+    split, pairs, beats = split_with_beats(data, part="validation", pack=args.pack)
     if not split.get("validation"):
         raise DanceNetError("the song split names no validation songs (weights/song_split.json)")
     style_net = MotionStyleModel.load()

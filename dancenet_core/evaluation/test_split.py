@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.build import PairedSequence, build_dataset
+from ..data.pack import read_pack
 from ..data.dance_with_melody import read_manifest
 from ..data.split import load_split
 from ..generate import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
@@ -67,11 +68,15 @@ def generate_for_pair(bundle: DanceNetBundle, pair: PairedSequence, seed: int, t
 
 
 def split_with_beats(
-    data_dir: Path, part: str = "test"
+    data_dir: Path, part: str = "test", pack: Path | None = None
 ) -> tuple[dict, dict[str, PairedSequence], dict[str, np.ndarray]]:
     """The song split, every paired sequence by id, and the music beats in dance time (s) of each sequence of
-    `part` of the split ("test" or "validation")."""
+    `part` of the split ("test" or "validation"); from a training pack (`dancenet data pack`) instead of the
+    data folder when one is given (its validation songs, on a machine without madmom)."""
     split = load_split()
+    if pack:
+        pairs, beats = read_pack(pack)
+        return split, {p.seq: p for p in pairs}, {s: beats[s] for s in split.get(part, [])}
     pairs = {p.seq: p for p in build_dataset(data_dir, progress=False)}
     seqs = {s.seq: s for s in read_manifest(data_dir)}
     beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in split.get(part, [])}

@@ -27,10 +27,12 @@ def music_features(variant: str) -> str:
 
 
 def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list[str], window: int,
-                mixtures: int = 1, residual_output: bool = False, input_skip: bool = False) -> nn.Module:
+                mixtures: int = 1, residual_output: bool = False, input_skip: bool = False,
+                widths: tuple[int, int, int] | None = None) -> nn.Module:
     """A freshly initialised network for `variant` (see VARIANTS); `mixtures` sizes DanceNet's GMM,
-    `residual_output` makes its means changes from the last frame and `input_skip` adds a linear path from
-    the input frame to the outputs (DanceNet variants only)."""
+    `residual_output` makes its means changes from the last frame, `input_skip` adds a linear path from
+    the input frame to the outputs and `widths` sets the motion/residual/skip channels (DanceNet variants only;
+    default the config's)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     music_dim = MEL_BANDS if music_features(variant) == "mel" else N_FEATURES
@@ -43,6 +45,8 @@ def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list
                          mixtures=mixtures if variant != "dancenet_mse" else 1, residual_output=residual_output,
                          input_skip=input_skip, loss="mse" if variant == "dancenet_mse" else "gmm",
                          music_encoder="frame" if variant == "dancenet_no_context" else "context")
+    if widths:
+        cfg.motion_channels, cfg.residual_channels, cfg.skip_channels = widths
     return DanceNet(cfg)
 
 

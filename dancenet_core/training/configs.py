@@ -50,6 +50,25 @@ class TrainSettings:
         False, "a linear path from the input frame to the outputs beside the residual stack (starts at zero, so a "
                "warm start begins as its source): carries the root's steps, outputs stay absolute")
     mixtures: int = _option(8, "Gaussian mixture components (DanceNet variants)")
+    widths: list[int] = _option(
+        [], "motion, residual and skip channels (default the shipped 256 64 256; the authors released 512 64 512)",
+        nargs=3)
+    own_passes: int = _option(
+        1, "chained passes of own draws: pass k feeds the draws of pass k-1, so a stretch of N own frames is a "
+           "true N-frame rollout when N <= passes (acLSTM's auto-conditioning, in parallel)")
+    own_stretch: int = _option(
+        0, "own frames come in stretches of this many, between stretches of real frames as long (0: single "
+           "frames scattered at random, the first release's --own-inputs)")
+    own_ramp: float = _option(
+        0.0, "share of the run over which the share of own frames rises from 0 to --own-inputs (scheduled sampling)")
+    own_temperature: float = _option(1.0, "temperature of the own draws (generation runs at 1.0)")
+    travel_weight: float = _option(
+        0.0, "weight of the travel loss: the root's predicted displacement and turn summed over --travel-windows "
+             "against the dancer's (keeps the path a dance takes, not only its next step)")
+    travel_windows: list[int] = _option([25, 100], "frame counts the travel loss sums over (1 s and 4 s)", nargs="+")
+    pack: Path | None = _option(
+        None, "train from a training pack (`dancenet data pack`) instead of the data folder (a GPU machine "
+              "without madmom or the data)")
     input_noise: float = _option(0.04, "Gaussian noise on the normalised input frames (the authors' 0.04)")
     input_dropout: float | None = _option(
         0.1, "share of input channels zeroed in training (the authors: 0.4; it hides the previous frame's root "

@@ -22,6 +22,7 @@ from torch.nn import functional as F
 
 from ..checkpoint import load_weights, save_weights
 from ..data.build import PairedSequence, build_dataset, mean_skeleton, with_mel_music
+from ..data.pack import load_pack
 from ..data.split import load_split
 from ..data.windows import WindowSampler
 from ..environment import default_data_dir
@@ -31,6 +32,7 @@ from ..model.export import bundle_to_runtime
 from ..model.variants import build_model, music_features
 from ..representation import FeatureLayout, Normalizer
 from .configs import TrainSettings
+from .tensor_windows import TensorWindows
 
 MIN_STYLE_SEQUENCES = 2  # a style danced in fewer training sequences cannot be learned or held out
 
@@ -79,31 +81,78 @@ def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
     model.load_state_dict(dst)
 
 
+def own_mask(shape: tuple[int, int], share: float, stretch: int, device: torch.device) -> torch.Tensor:
+    """Which frames [B, T] the model's own draws replace: a random `share` of single frames, or (stretch > 0)
+    stretches of `stretch` own frames at a random phase per window, between real stretches, `share` of all."""
+    if stretch <= 0:
+        return torch.rand(shape, device=device) < share
+    period = max(stretch + 1, round(stretch / max(share, 1e-6)))
+    phase = torch.randint(0, period, (shape[0], 1), device=device)
+    return (torch.arange(shape[1], device=device) + phase) % period < stretch
+
+
 @torch.no_grad()
 def with_own_predictions(model: torch.nn.Module, frames: torch.Tensor, music: torch.Tensor, style: torch.Tensor,
-                         share: float) -> torch.Tensor:
-    """`frames` [B, T, D] with a random `share` of frames 1.. replaced by the model's own one-step draws
-    (component by its weight, then its mean and half its spread; contacts by their logits).
+                         share: float, passes: int = 1, stretch: int = 0, temperature: float = 0.5) -> torch.Tensor:
+    """`frames` [B, T, D] with frames 1.. chosen by `own_mask` replaced by the model's own draws (component by
+    its weight, then its mean and `temperature` x its spread; contacts by their logits).
 
     Why: teacher forcing only ever shows the network real previous frames, so its first own mistakes at
     generation are inputs it never saw, and a dance drifts or freezes (exposure bias). Trained on its own
-    draws against the real next frame, it learns to steer back (parallel scheduled sampling, one pass).
+    draws against the real next frame, it learns to steer back. Each of `passes` feeds the previous pass's
+    draws (acLSTM's auto-conditioning, for all windows at once): the own frames see errors accumulated over
+    up to `passes` own steps, and each pass is one step of the fixed-point iteration whose limit is a true
+    free run inside the own stretches (exact after `passes` >= `stretch` for a window's first stretch).
     """
     was_training = model.training
     model.eval()
-    logits, mu, log_sigma, contacts = model.split(model(frames, music, style))
+    mask = own_mask(frames.shape[:2], share, stretch, frames.device)[:, 1:, None]
+    mixed = frames
+    for _ in range(passes):
+        logits, mu, log_sigma, contacts = model.split(model(mixed, music, style))
+        comp = torch.distributions.Categorical(logits=logits).sample()[..., None, None]
+        d = mu.shape[-1]
+        pick = comp.expand(*comp.shape[:-2], 1, d)
+        mean = mu.gather(-2, pick)[..., 0, :]
+        sigma = log_sigma.gather(-2, pick)[..., 0, :].exp()
+        own = torch.cat([mean + temperature * sigma * torch.randn_like(mean), (contacts > 0).to(mean.dtype)], -1)
+        own[..., :d] *= model.modelled.to(own.dtype)  # constant channels stay at their (zero) value
+        mixed = frames.clone()
+        mixed[:, 1:] = torch.where(mask, own, frames[:, 1:])
     model.train(was_training)
-    comp = torch.distributions.Categorical(logits=logits).sample()[..., None, None]
-    d = mu.shape[-1]
-    pick = comp.expand(*comp.shape[:-2], 1, d)
-    mean = mu.gather(-2, pick)[..., 0, :]
-    sigma = log_sigma.gather(-2, pick)[..., 0, :].exp()
-    own = torch.cat([mean + 0.5 * sigma * torch.randn_like(mean), (contacts > 0).to(mean.dtype)], -1)
-    own[..., :d] *= model.modelled.to(own.dtype)  # constant channels stay at their (zero) value
-    mask = torch.rand(frames.shape[:2], device=frames.device)[..., None] < share
-    mixed = frames.clone()
-    mixed[:, 1:] = torch.where(mask[:, 1:], own, frames[:, 1:])
     return mixed
+
+
+ROOT_STEP = [0, 2, 3]  # the root's sideways and forward step and its turn (representation.py)
+
+
+def travel_loss(model: torch.nn.Module, out: torch.Tensor, target: torch.Tensor, mean: torch.Tensor,
+                std: torch.Tensor, windows: list[int]) -> torch.Tensor:
+    """How far the predicted root path strays from the dancer's over whole windows.
+
+    The mixture's expected root step (sideways, forward, turn; unnormalised by `mean`/`std` of those channels)
+    is turned into the world by the dancer's own heading and summed over every window of each length; the
+    squared difference to the dancer's sums, in units of their spread, averaged. Why: a step-by-step NLL lets
+    a model shuffle in place (each step's mean shrunk toward zero costs little); this loss sees the ground a
+    second or four seconds of dance covers (FACT's and Bailando's remedy for freezing dances).
+    """
+    logits, mu, _, _ = model.split(out)
+    expected = (torch.softmax(logits, -1)[..., None] * mu).sum(-2)
+    pred = expected[..., ROOT_STEP] * std + mean
+    true = target[..., ROOT_STEP] * std + mean
+    prev_yaw = torch.cumsum(true[..., 2], 1) - true[..., 2]
+    c, s = torch.cos(prev_yaw), torch.sin(prev_yaw)
+
+    def path(v: torch.Tensor) -> torch.Tensor:  # world steps (rotation about +Y, as decode) and turn, summed
+        return torch.cumsum(torch.stack([v[..., 0] * c + v[..., 1] * s, -v[..., 0] * s + v[..., 1] * c,
+                                         v[..., 2]], -1), 1)
+
+    cp, cq = path(pred), path(true)
+    terms = []
+    for n in (n for n in windows if n < out.shape[1]):
+        sp, sq = cp[:, n:] - cp[:, :-n], cq[:, n:] - cq[:, :-n]
+        terms.append((((sp - sq) ** 2).mean((0, 1)) / ((sq**2).mean((0, 1)).detach() + 1e-6)).mean())
+    return torch.stack(terms).mean() if terms else out.new_zeros(())
 
 
 def _ddp() -> tuple[int, int]:
@@ -125,7 +174,9 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     torch.manual_seed(args.seed + rank)
     rng = np.random.default_rng(args.seed + rank)
 
-    if pairs is None:
+    if pairs is None and args.pack:
+        pairs = load_pack(args.pack)
+    elif pairs is None:
         pairs = build_dataset(args.data or default_data_dir(), progress=rank == 0)
         if music_features(args.variant) == "mel":
             pairs = with_mel_music(pairs, args.data or default_data_dir())
@@ -143,7 +194,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
     model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
                         mixtures=args.mixtures, residual_output=args.residual_output,
-                        input_skip=args.input_skip)
+                        input_skip=args.input_skip, widths=tuple(args.widths) or None)
     cfg = model.cfg
     if args.input_dropout is not None:
         cfg.input_dropout = args.input_dropout
@@ -155,6 +206,10 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
 
     train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
+    # On a GPU the numpy batch is the bottleneck: draw the same windows from tensors on the device instead.
+    device_windows = TensorWindows(train_windows, device) if device.type == "cuda" else None
+    root_mean, root_std = (torch.tensor(a[ROOT_STEP], dtype=torch.float32, device=device)
+                           for a in (norm.mean, norm.std))
     # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
     # test songs (a figure for the card only).
     eval_name = "val" if held_out else "test"
@@ -210,17 +265,27 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     t_last = time.time()
     budget = args.minutes * 60
     while step < args.steps and elapsed < budget:
-        b = train_windows.batch(rng, args.batch, input_noise=args.input_noise)
-        noisy = torch.tensor(b.motion, device=device)
-        music = torch.tensor(b.music, device=device)
-        style = torch.tensor(b.style, device=device)
-        if args.own_inputs > 0:
-            noisy = with_own_predictions(model, noisy, music, style, args.own_inputs)
+        if device_windows:
+            b = device_windows.batch(args.batch, input_noise=args.input_noise)
+            noisy, music, style, target = b.motion, b.music, b.style, b.target
+        else:
+            b = train_windows.batch(rng, args.batch, input_noise=args.input_noise)
+            noisy, music, style, target = (torch.tensor(a, device=device)
+                                           for a in (b.motion, b.music, b.style, b.target))
+        progress = max(step / args.steps, elapsed / budget)
+        share = args.own_inputs * (min(1.0, progress / args.own_ramp) if args.own_ramp > 0 else 1.0)
+        if share > 0:
+            noisy = with_own_predictions(model, noisy, music, style, share, args.own_passes, args.own_stretch,
+                                         args.own_temperature)
         x = F.dropout(noisy, cfg.input_dropout, training=True)
         # A residual output starts from the frame before dropout: dropout hides channels from the network,
         # not from the frame the change is added to (at generation that frame is whole).
         o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)
-        loss, parts = model.loss(o, torch.tensor(b.target[:, 1:], device=device), music[:, 1:])
+        loss, parts = model.loss(o, target[:, 1:], music[:, 1:])
+        if args.travel_weight > 0:
+            travel = travel_loss(model, o, target[:, 1:], root_mean, root_std, args.travel_windows)
+            loss = loss + args.travel_weight * travel
+            parts["travel"] = float(travel.detach())
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)

@@ -1,13 +1,21 @@
-"""Warm starts: a trained DanceNet carried into a model with more mixture components, a new style or
-residual outputs starts where the source was (or, for residual outputs, as 'copy the last frame')."""
+"""Warm starts (a trained DanceNet carried into a model with more mixture components, a new style or
+residual outputs starts where the source was, or, for residual outputs, as 'copy the last frame'), and the
+training levers against timid dances: own rollouts, the travel loss, windows drawn on the device, the pack."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from dancenet_core.data.build import PairedSequence
+from dancenet_core.data.pack import load_pack, save_pack
+from dancenet_core.data.windows import WindowSampler
 from dancenet_core.model.dancenet import DanceNet, DanceNetConfig
-from dancenet_core.training.dancenet import warm_start, with_own_predictions
+from dancenet_core.representation import FeatureLayout, Normalizer
+from dancenet_core.training.dancenet import own_mask, travel_loss, warm_start, with_own_predictions
+from dancenet_core.training.tensor_windows import TensorWindows
 
 
 def _net(mixtures: int, styles: list[str], residual: bool, seed: int) -> DanceNet:
@@ -71,3 +79,79 @@ def test_own_predictions_replace_the_chosen_share_of_frames_after_the_first() ->
     half = with_own_predictions(net, x, music, style, 0.5)
     replaced = ~torch.isclose(half[:, 1:, 0], x[:, 1:, 0])
     assert 0.3 < replaced.float().mean() < 0.7
+
+
+def test_chained_passes_converge_to_a_free_run_of_the_own_stretches() -> None:
+    """With own stretches of 3 frames and 3 passes, the window's first stretch was drawn from the frames
+    before it as they stand in the result: the model ran free there. Later stretches also depend on earlier
+    ones (the receptive field is longer than a stretch), so more passes bring them closer to a free run."""
+    net = _net(1, ["a"], residual=False, seed=0)
+    x, music = _inputs()
+    style = torch.tensor([0, 0])
+
+    def gap(passes: int) -> tuple[float, float]:
+        """Largest gap between own frames and the means drawn from the result: first stretch, all."""
+        torch.manual_seed(3)
+        mixed = with_own_predictions(net, x, music, style, 0.5, passes=passes, stretch=3, temperature=0.0)
+        own = ~torch.isclose(mixed[:, 1:, 0], x[:, 1:, 0])
+        with torch.no_grad():
+            mean = net.split(net(mixed, music, style))[1][..., 0, :]
+        err = (mean - mixed[:, 1:, :10]).abs().amax(-1)
+        first = own.int().cumsum(1) <= 3
+        return err[own & first].max().item(), err[own].max().item()
+
+    gaps = {p: gap(p) for p in (1, 3, 6)}
+    assert gaps[3][0] < 1e-5 < gaps[1][0]
+    assert gaps[6][1] < 0.2 * gaps[3][1] < gaps[1][1]
+
+
+def test_own_stretches_cover_the_share_asked_for() -> None:
+    for share in (0.3, 0.5):
+        mask = own_mask((64, 400), share, 10, torch.device("cpu"))
+        assert abs(mask.float().mean().item() - share) < 0.05
+        runs = torch.diff(mask[0].int()).abs().sum().item()  # own stretches come whole, not as single frames
+        assert runs <= 2 * 400 / 10 * share + 2
+
+
+def test_travel_loss_is_zero_on_the_dancers_path_and_grows_with_a_timid_one() -> None:
+    """Expected root steps equal to the dancer's: no loss; the same steps at half length: a loss near the
+    4-s window's (1 - 0.5)^2 = 0.25 of the displacement's spread."""
+    net = _net(1, ["a"], residual=False, seed=0)
+    k, d = net.cfg.mixtures, net.cfg.continuous_dim
+    rng = np.random.default_rng(0)
+    target = torch.tensor(rng.normal(size=(4, 150, 12)), dtype=torch.float32)
+    target[..., 0] = 1.0  # steady forward-ish steps so the path has extent
+    out = torch.zeros(4, 150, net.cfg.mixtures * (1 + 2 * d) + 2)
+    out[..., k : k + d] = target[..., :d]
+    mean, std = torch.zeros(3), torch.full((3,), 0.02)
+    assert travel_loss(net, out, target, mean, std, [25, 100]).item() < 1e-6
+    timid = out.clone()
+    timid[..., k : k + d] *= 0.5
+    loss = travel_loss(net, timid, target, mean, std, [25, 100]).item()
+    assert 0.1 < loss < 0.5
+
+
+def test_device_windows_are_the_samplers_windows(tmp_path: Path) -> None:
+    """The tensor batch holds real windows of the sequences (or their mirror images) with their music and
+    style, at the noise asked for: the same data as the numpy batch."""
+    layout = FeatureLayout(3, 1)
+    rng = np.random.default_rng(0)
+    pairs = [PairedSequence(f"S{i}", "waltz" if i else "tango", rng.normal(size=(90, layout.size)).astype(np.float32),
+                            rng.normal(size=(90, layout.size)).astype(np.float32),
+                            rng.normal(size=(90, 15)).astype(np.float32), np.zeros((90, 22, 3), np.float32),
+                            np.zeros((3, 3)), 1.0, 2.0) for i in range(2)]
+    norm = Normalizer.fit([p.motion for p in pairs], binary=layout.contacts)
+    sampler = WindowSampler(pairs, norm, ["tango", "waltz"], layout, window=30, stride=5, clusters=2)
+    b = TensorWindows(sampler, torch.device("cpu")).batch(16, input_noise=0.0, target_noise=0.0)
+    assert b.motion.shape == (16, 30, layout.size) and b.music.shape == (16, 30, 15)
+    for w in range(16):
+        p = pairs[int(b.style[w])]  # style index = sequence here
+        start = int(np.argmin(np.abs(p.music[:, 0] - b.music[w, 0, 0].item())))
+        sources = [norm.normalize(p.motion), norm.normalize(p.mirrored)]
+        assert any(np.allclose(b.motion[w].numpy(), src[start : start + 30], atol=1e-5) for src in sources)
+        np.testing.assert_allclose(b.music[w].numpy(), p.music[start : start + 30])
+    pack = tmp_path / "pack.npz"
+    save_pack(pairs, pack)
+    back = load_pack(pack)
+    assert [p.seq for p in back] == ["S0", "S1"] and back[1].style == "waltz"
+    np.testing.assert_allclose(back[0].motion, pairs[0].motion, rtol=1e-3, atol=1e-3)
