@@ -39,6 +39,12 @@ _FRAME_TIME_RE = re.compile(r"Frame\s+Time:\s*(\S+)\s*$", re.IGNORECASE)
 # Deeper hierarchies are not skeletons (a human chain is ~10 deep); reading and writing them recursively would
 # exhaust Python's stack.
 MAX_DEPTH = 200
+# More joints than any rig (a face-rigged character has a few hundred): a bound on what a file may ask for, read
+# in time linear in the joints.
+MAX_JOINTS = 10_000
+# Frame rates a motion file may ask for (mocap runs at up to a few hundred fps): outside them, resampling to the
+# model's 25 fps would make thousands of frames from each one (Frame Time 1000 asked for 41 GiB).
+MIN_FPS, MAX_FPS = 1.0, 1000.0
 
 
 class BvhParseError(DanceNetError):
@@ -230,6 +236,9 @@ class _HierarchyParser:
                 break
         self.pos = 0
         self.names: list[str] = []
+        # Names so far as sets: a lookup per name, not a search, so reading is linear in the joints.
+        self.joint_names: set[str] = set()
+        self.end_site_names: set[str] = set()
         self.parents: list[int] = []
         self.offsets: list[tuple[float, float, float]] = []
         self.channels: list[tuple[str, ...]] = []
@@ -298,10 +307,13 @@ class _HierarchyParser:
         name = " ".join(words[1:])
         if not name:
             raise self.error(line, f"'{words[0]}' followed by a joint name")
-        if name in self.names:
+        if name in self.joint_names:
             raise self.error(line, "a joint name not used before")
         j = len(self.names)
+        if j == MAX_JOINTS:
+            raise BvhParseError(self.path, line, f"more than {MAX_JOINTS} joints: not a skeleton")
         self.names.append(name)
+        self.joint_names.add(name)
         self.parents.append(parent)
         self.expect(["{"], "'{'")
         self.offsets.append(self.offset())
@@ -314,11 +326,11 @@ class _HierarchyParser:
                 self.expect(["{"], "'{'")
                 offset = self.offset()
                 self.expect(["}"], "'}'")
-                taken = {s.name for s in self.end_sites}
                 site = f"{name}_end"
                 k = 2
-                while site in taken:
+                while site in self.end_site_names:
                     site, k = f"{name}_end{k}", k + 1
+                self.end_site_names.add(site)
                 self.end_sites.append(EndSite(site, j, offset))
             elif words == ["}"]:
                 return
@@ -410,6 +422,9 @@ def read_bvh(path: str | Path) -> BvhData:
     frames = int(_header_number(path, lines, header[0], _FRAMES_RE, int, what))
     what = "'Frame Time:' followed by a positive number of seconds"
     frame_time = _header_number(path, lines, header[1], _FRAME_TIME_RE, float, what)
+    if not 1 / MAX_FPS <= frame_time <= 1 / MIN_FPS:
+        raise BvhParseError(path, header[1] + 1, f"expected 'Frame Time:' from {1 / MAX_FPS:g} to {1 / MIN_FPS:g} "
+                            f"seconds ({MIN_FPS:g} to {MAX_FPS:g} frames per second), got {frame_time:g}")
 
     data = lines[i:]
     ncols = sum(len(c) for c in parser.channels)

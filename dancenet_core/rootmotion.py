@@ -22,6 +22,12 @@ from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
 
 ROOT_MODES: tuple[str, ...] = ("travel", "in-place", "root-bone")
 ROOT_BONE = "root"
+# Units a dance's BVH may come in (ours and Blender's exporter write metres; other tools centimetres or inches),
+# told apart by the skeleton's size against our dancer's; metres per unit.
+UNITS: tuple[tuple[str, float], ...] = (("metres", 1.0), ("centimetres", 0.01), ("millimetres", 0.001),
+                                        ("inches", 0.0254))
+SIZE_RANGE = (0.5, 2.0)  # a dancer from half to twice ours, in the unit found
+MAX_TRAVEL_M = 1000.0  # no dance goes further from where it started: beyond this a file holds garbage, not a path
 
 
 def in_place(motion: Motion) -> Motion:
@@ -95,11 +101,27 @@ def read_dance_bvh(path: str | Path) -> Motion:
                                                   enumerate(PARENTS) if p >= 0):
         raise DanceNetError(f"{Path(path).name} is not a DanceNet dance (its joints are not the 55 of "
                             "`dancenet generate`'s BVH)")
+    metres = _metres_per_unit(Path(path).name, data.offsets[perm[1:]])
     world_p, world_r = data._fk()
+    root = world_p[:, perm[0]] * metres
+    if not np.abs(root - root[0]).max() <= MAX_TRAVEL_M:
+        raise DanceNetError(f"{Path(path).name}: its hips go more than {MAX_TRAVEL_M:g} m from where they start; "
+                            "that is not a dance (export it again)")
     rotations = data.local_rotations()[:, perm]
     rotations[:, 0] = Rotation.from_matrix(world_r[:, perm[0]]).as_rotvec()
-    offsets = data.offsets[perm]
+    offsets = data.offsets[perm] * metres
     offsets[0] = 0.0
     skeleton = DEFAULT_SKELETON if np.allclose(offsets, DEFAULT_SKELETON.offsets, rtol=0.0, atol=1e-5) else \
         Skeleton(offsets, JOINT_NAMES, PARENTS, DEFAULT_SKELETON.end_sites)
-    return Motion(rotations, world_p[:, perm[0]], data.fps, skeleton)
+    return Motion(rotations, root, data.fps, skeleton)
+
+
+def _metres_per_unit(name: str, bones: np.ndarray) -> float:
+    """The unit of a dance's BVH, from its bones [54, 3] against our dancer's: the one of `UNITS` that makes it
+    nearest our size, or a one-line error when no unit makes it a dancer's size."""
+    size = float(np.linalg.norm(bones, axis=-1).sum() / np.linalg.norm(DEFAULT_SKELETON.offsets, axis=-1).sum())
+    unit, metres = min(UNITS, key=lambda u: abs(np.log(size * u[1]))) if size > 0 else UNITS[0]
+    if not SIZE_RANGE[0] <= size * metres <= SIZE_RANGE[1]:
+        raise DanceNetError(f"{name}: its skeleton is {size:.3g} times our dancer's size, which no unit (metres, "
+                            "centimetres, millimetres, inches) makes a dancer's; export it again in one of them")
+    return metres

@@ -465,3 +465,86 @@ def test_blender_reads_what_we_write_and_we_read_what_it_writes(tmp_path: Path) 
     )
     back = data.to_motion()
     np.testing.assert_allclose(back.positions()[:, index] @ z_up_to_y_up.T, motion.positions(), atol=TOL)
+
+
+# ------------------------------------------------------------------ what a file may ask for (issue 26)
+
+
+def _dance(frames: int = 50) -> Motion:
+    """Our dancer (the 55 joints at our rest offsets), moving a little."""
+    from made_up import small_motion
+
+    return small_motion(frames)
+
+
+@pytest.mark.parametrize(("unit", "scale"), [("metres", 1.0), ("centimetres", 100.0), ("millimetres", 1000.0),
+                                             ("inches", 1 / 0.0254)])
+def test_a_dance_in_any_unit_reads_back_in_metres(tmp_path: Path, unit: str, scale: float) -> None:
+    """Issue 26 item 5: the unit comes from the skeleton's size, so a dance saved in centimetres (offsets and root
+    path x100) continues as the same dance, not one 100 times too large."""
+    from dancenet_core.rootmotion import read_dance_bvh
+
+    motion = _dance()
+    write_bvh(tmp_path / "d.bvh", motion, scale=scale)
+    back = read_dance_bvh(tmp_path / "d.bvh")
+    np.testing.assert_allclose(back.skeleton.offsets, DEFAULT_SKELETON.offsets, atol=1e-5)
+    np.testing.assert_allclose(back.positions(), motion.positions(), atol=1e-4)
+
+
+def _asking_too_much(path: Path, case: str) -> None:
+    """Our dance's BVH edited as a crafted file would be."""
+    write_bvh(path, _dance(), scale={"giant": 1e6, "tiny": 1e-6}.get(case, 1.0))
+    lines = path.read_text().splitlines()
+    first = lines.index("MOTION") + 3
+    if case in ("huge-path", "huge-height"):
+        words = lines[first + 5].split()
+        words[0 if case == "huge-path" else 1] = "1e30"
+        lines[first + 5] = " ".join(words)
+    elif case in ("slow", "fast"):
+        lines[first - 1] = f"Frame Time: {1000 if case == 'slow' else 1e-5}"
+    path.write_text("\n".join(lines) + "\n")
+
+
+CRAFTED = {"huge-path": "more than 1000 m", "huge-height": "more than 1000 m", "slow": "1 to 1000 frames per second",
+           "fast": "1 to 1000 frames per second", "giant": "no unit", "tiny": "no unit"}
+
+
+@pytest.mark.parametrize("case", list(CRAFTED))
+def test_continue_from_a_file_asking_too_much_is_one_line_before_any_work(
+        tmp_path: Path, capsys: pytest.CaptureFixture, case: str) -> None:
+    """Issue 26 item 5: finite but absurd values (1e30 m, Frame Time 1000, a skeleton no unit makes a dancer's)
+    are refused in one line before the music is analysed, not as a traceback after the dance is made."""
+    from dancenet_core.cli import main as cli_main
+
+    kept = tmp_path / "kept.bvh"
+    _asking_too_much(kept, case)
+    song = Path(__file__).resolve().parents[1] / "examples" / "example_song.ogg"
+    code = cli_main(["generate", str(song), "-o", str(tmp_path / "out"), "--continue", str(kept), "--at", "1"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1, err
+    assert CRAFTED[case] in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_reading_is_linear_in_the_joints_up_to_a_stated_limit(tmp_path: Path) -> None:
+    """Issue 26 item 9: names are looked up, not searched (8,000 joints took 3.8 s, 100,000 never ended); more
+    than MAX_JOINTS is one line."""
+    import time
+
+    from dancenet_core.bvh import MAX_JOINTS
+
+    def wide(joints: int) -> Path:
+        body = "".join(f"JOINT j{j}\n{{\nOFFSET 0 1 0\nCHANNELS 0\nEnd Site\n{{\nOFFSET 0 1 0\n}}\n}}\n"
+                       for j in range(joints - 1))
+        path = tmp_path / f"wide{joints}.bvh"
+        path.write_text("HIERARCHY\nROOT r\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n" + body
+                        + "}\nMOTION\nFrames: 1\nFrame Time: 0.04\n0 0 0\n")
+        return path
+
+    at_limit = wide(MAX_JOINTS)
+    start = time.perf_counter()
+    assert read_bvh(at_limit).num_joints == MAX_JOINTS
+    assert time.perf_counter() - start < 2.0  # 0.2 s here; the quadratic reader took 6 s
+    with pytest.raises(BvhParseError, match=f"more than {MAX_JOINTS} joints: not a skeleton"):
+        read_bvh(wide(MAX_JOINTS + 1))
