@@ -11,8 +11,9 @@ setup:
 test: lint
 	@bash scripts/run_tests.sh
 
+# The demo replaces its own example outputs in out/, so it runs again and again (user songs keep the no-overwrite rule).
 demo: setup
-	@$(PY) -m dancenet_core.cli generate examples/example_song.ogg -o out --render
+	@$(PY) -m dancenet_core.cli generate examples/example_song.ogg -o out --render --overwrite
 
 lint: setup
 	@.venv/bin/ruff check .

@@ -888,9 +888,8 @@ def render_motion(
     # -t ends every stream at the last frame: the music is cut there, or padded with silence up to it.
     cmd += ["-t", f"{float(motion.num_frames / rate):.6f}", "-c:v", "libx264", "-preset", "veryfast",
             "-crf", "20", "-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4"]
-    partial = out.with_name(f".{out.name}.partial")
     frames = iter_frames(motion, None, width, height)
-    with tempfile.TemporaryFile() as log, contextlib.closing(frames):
+    with atomic_path(out) as partial, tempfile.TemporaryFile() as log, contextlib.closing(frames):
         proc = subprocess.Popen([*cmd, str(partial)], stdin=subprocess.PIPE, stderr=log)
         stdin = cast(IO[bytes], proc.stdin)
         try:
@@ -906,12 +905,9 @@ def render_motion(
         except BaseException:
             proc.kill()
             proc.wait()
-            partial.unlink(missing_ok=True)
             raise
         if code != 0:
             log.seek(0)
-            partial.unlink(missing_ok=True)
             message = _last_line(log.read().decode(errors="replace"))
             raise DanceNetError(f"ffmpeg could not write {out}: {message}")
-    os.replace(partial, out)
     return out

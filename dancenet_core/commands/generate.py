@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..atomic import write_text
+from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
 from ..continuation import keep_original
 from ..errors import DanceNetError
-from ..generate import DEFAULT_TEMPERATURE, generate_dance
+from ..generate import DEFAULT_TEMPERATURE, GenerationResult, generate_dance
 from ..model.runtime import DEFAULT_RUNTIME, META
 from ..motion import FRAME_RATES, Motion
-from ..outputs import check_folder_writable, refuse_overwrite, safe_stem
+from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..render import render_motion
 from ..rootmotion import ROOT_MODES, apply_mode, read_dance_bvh, write_root_bone_bvh
 
@@ -90,8 +90,10 @@ def run(args: argparse.Namespace) -> int:
     stem = safe_stem(args.song)
     kept = _kept_dance(args)
     check_folder_writable(args.out)
+    remove_leftovers(args.out)
+    outputs = _outputs(args, stem)
     if not args.overwrite:
-        refuse_overwrite(_outputs(args, stem))
+        refuse_overwrite(outputs)
     # A bar drawn keeps its last state on a line of its own (leave=True ends it with a newline), so the summary
     # below starts its own line, also where stderr and stdout share a log; a run under `delay` draws none.
     bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}", delay=0.5,
@@ -119,18 +121,28 @@ def run(args: argparse.Namespace) -> int:
     elif args.fps is not None:
         result.motions = [m.resampled(args.fps) for m in result.motions]
     result.motions = [apply_mode(m, args.root_motion) for m in result.motions]
+    with claimed_outputs(outputs, args.overwrite) as temp:  # this run's files appear together, or none
+        summary = _write(args, stem, result, temp, t0)
+    print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
+          f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
+    return 0
+
+
+def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: dict[Path, Path],
+           t0: float) -> dict:
+    """Write every output to its temporary path in `temp` (keyed by its final path); returns the summary."""
     write_dance_bvh = write_root_bone_bvh if args.root_motion == "root-bone" else write_bvh
     files = []
     t = time.perf_counter()
     for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-        write_dance_bvh(args.out / f"{name}.bvh", motion)
-        motion.save(args.out / f"{name}.npz")
+        write_dance_bvh(temp[args.out / f"{name}.bvh"], motion)
+        motion.save(temp[args.out / f"{name}.npz"])
         files += [f"{name}.bvh", f"{name}.npz"]
     result.timings["writing_s"] = time.perf_counter() - t
     if args.render:
         t = time.perf_counter()
         for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-            render_motion(motion, args.out / f"{name}.mp4", audio=args.song, audio_start=result.start_s)
+            render_motion(motion, temp[args.out / f"{name}.mp4"], audio=args.song, audio_start=result.start_s)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
     result.timings["total_s"] = time.perf_counter() - t0
@@ -139,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         "style": result.style,
         "style_probabilities": result.style_probabilities,
         "tempo_bpm": round(result.tempo_bpm, 2),
-        "start_s": round(result.start_s, 3),
+        "start_s": round(result.start_s, 3) + 0.0,  # never -0.0 (`--start -0.0`)
         "duration_s": round(result.duration_s, 3),
         "fps": result.motions[0].fps,
         "frames": result.motions[0].num_frames,
@@ -155,7 +167,5 @@ def run(args: argparse.Namespace) -> int:
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
         "files": files,
     }
-    write_text(args.out / f"{stem}.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
-    print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
-          f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
-    return 0
+    write_text(temp[args.out / f"{stem}.json"], json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    return summary

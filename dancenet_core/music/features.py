@@ -23,7 +23,6 @@ import hashlib
 import json
 import multiprocessing as mp
 import sys
-import warnings
 import zipfile
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
@@ -183,24 +182,25 @@ def analyze_music(
     if use_cache:
         entry = Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
         entry = entry / f"{cache_key(_existing(path))}.npz"
-        if entry.is_file():
-            try:
-                result = MusicAnalysis.load(entry)
-            except ValueError as e:  # truncated, damaged or stale: recompute and replace it
-                print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
-                      "analysing the song again", file=sys.stderr)
-                result = None
-            if result is not None:
-                report(1.0)
-                return result if with_mel else _without_mel(result)
+        try:
+            result = MusicAnalysis.load(entry) if entry.is_file() else None
+        except (ValueError, OSError) as e:  # truncated, damaged, stale or unreadable: recompute and replace it
+            print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
+                  "analysing the song again", file=sys.stderr)
+            result = None
+        if result is not None:
+            report(1.0)
+            return result if with_mel else _without_mel(result)
     audio = load_audio(path)
     report(0.02)
     result = analyze_audio(audio, workers=workers, progress=lambda f: report(0.02 + 0.98 * f))
     if entry is not None:
         try:
             result.save(entry)
-        except (DanceNetError, ValueError) as e:  # a full disk (or a damaged result) loses the cache entry only
-            warnings.warn(f"could not write the feature cache: {e}", stacklevel=2)
+        except (DanceNetError, ValueError, OSError) as e:  # a full disk, a cache folder that cannot be (a file,
+            # read-only) or a damaged result lose the cache entry only
+            print(f"dancenet: the music analysis is not cached ({first_line(e, 160)}); carrying on without "
+                  "the cache (set DANCENET_CACHE to a folder you can write to)", file=sys.stderr)
     return result if with_mel else _without_mel(result)
 
 
