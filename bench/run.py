@@ -5,7 +5,7 @@ honest peak memory); speeds are ratios measured in the same run, because this ma
     .venv/bin/python bench/run.py [--quick]     (or: make bench)
 
 --quick analyses a 1-minute song instead of a real 3.6-minute one and skips the 10-minute memory run and
-the demo.
+the demo. The extension's bench (build, sizes, first Generate Dance in a fresh bpy 4.5 and 5.2) runs in both.
 """
 
 from __future__ import annotations
@@ -79,6 +79,11 @@ def summary(d: dict) -> dict:
         "peak_rss_mb_ten_minute_song": pick("generation", "ten_minute_song", "peak_rss_mb"),
         "ten_minute_song_numpy_over_torch_peak_rss": pick("generation", "ten_minute_song", "numpy_over_torch_peak_rss"),
         "peak_rss_mib_analysis": pick("analysis", "peak_rss_mib"),
+        "addon_zip_mb": {p: v.get("zip_mb") for p, v in pick("addon", "sizes").items()}
+        if pick("addon", "sizes") else None,
+        "addon_first_generate_s": {v: {case: r.get(case, {}).get("first_generate_s")
+                                       for case in ("clicked_at_once", "clicked_after_warm_up")}
+                                   for v, r in (pick("addon", "first_click") or {}).items()},
     }
 
 
@@ -99,6 +104,9 @@ def main() -> int:
             "keyframes": bench("keyframes.py", env=blender_home),
             "render": bench("render.py", "--engine", "pyrender"),
             "end_to_end": bench("end_to_end.py", *(["--skip-demo"] if args.quick else [])),
+            # The extension built and installed into a fresh bpy 4.5 and 5.2 (each bench its own scratch folders).
+            "addon": bench("addon_first_click.py", "--pythons",
+                           *(str(BENCH.parent / v / "bin" / "python") for v in (".venv", ".venv-blender52"))),
         }
     result = {"summary": summary(details), "details": details, "wall_s": round(time.perf_counter() - t, 1),
               "cpu_count": os.cpu_count(), "load_average": [round(x, 2) for x in os.getloadavg()]}

@@ -7,6 +7,7 @@ as wheels, which Blender installs with the extension) and as a legacy add-on mod
 """
 
 import os
+import threading
 
 import bpy
 
@@ -34,16 +35,32 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
 }
 
 _CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
+_warm_up_stop = threading.Event()  # this registration's; unregister sets it, register makes a new one
+
+
+def _warm_up(stop: threading.Event) -> None:
+    """The first Generate Dance's imports and numba compiles, done now rather than on the first click (17-30 s
+    from cold, issue 27). It never touches bpy, so disabling the add-on meanwhile only stops it early."""
+    try:
+        from dancenet_core.warmup import warm_up
+
+        warm_up(stop.is_set)
+    except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
+        print(f"DanceNet: warm-up stopped: {e}")
 
 
 def register() -> None:
+    global _warm_up_stop
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
+    _warm_up_stop = threading.Event()
+    threading.Thread(target=_warm_up, args=(_warm_up_stop,), name="dancenet-warm-up", daemon=True).start()
 
 
 def unregister() -> None:
+    _warm_up_stop.set()
     menus.unregister()
     properties.unregister()
     for cls in reversed(_CLASSES):

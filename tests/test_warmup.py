@@ -1,0 +1,37 @@
+"""The warm-up the add-on runs when it is enabled (issue 27 item 4) compiles every kernel a Generate Dance runs,
+with the types a real run gives them: a Generate Dance after it compiles nothing more."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+PROBE = """
+import sys
+from dancenet_core.model import sampler
+from dancenet_core.music import madmom_dbn, madmom_nets
+from dancenet_core.warmup import warm_up
+
+kernels = (madmom_nets._scan, madmom_dbn._viterbi, madmom_dbn._backtrack, sampler._generate)
+warm_up(lambda: True)
+print("CANCELLED", [len(k.signatures) for k in kernels])
+warm_up()
+print("WARM", [len(k.signatures) for k in kernels])
+from dancenet_core.generate import generate_dance
+generate_dance(sys.argv[1], end_s=4.0)
+print("AFTER", [len(k.signatures) for k in kernels])
+"""
+
+
+def test_a_generate_after_the_warm_up_compiles_nothing(tmp_path: Path) -> None:
+    """In a fresh process (a test before this one may have compiled them), music cache in a scratch folder."""
+    env = os.environ | {"DANCENET_CACHE": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", PROBE, str(ROOT / "examples" / "example_song.ogg")], cwd=ROOT,
+                         env=env, capture_output=True, text=True, check=True).stdout  # fmt: skip
+    assert "CANCELLED [0, 0, 0, 0]" in out
+    assert "WARM [1, 1, 1, 1]" in out
+    assert "AFTER [1, 1, 1, 1]" in out
