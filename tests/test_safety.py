@@ -282,7 +282,7 @@ def _hammer(entry: str, n: int) -> None:
 
     rng = np.random.default_rng()
     for _ in range(n):
-        MusicAnalysis(rng.random((2000, 15), dtype=np.float32), np.arange(10.0), np.arange(3.0), 120.0, 200.0,
+        MusicAnalysis(rng.random((2000, 15), dtype=np.float32), np.arange(10.0), np.arange(3.0), 60.0, 200.0,
                       mel=rng.random((2000, 80), dtype=np.float32)).save(entry)
 
 

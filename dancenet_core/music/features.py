@@ -23,7 +23,6 @@ import hashlib
 import json
 import multiprocessing as mp
 import sys
-import zipfile
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -80,13 +79,27 @@ class MusicAnalysis:
         return int(self.features.shape[0])
 
     def check(self) -> None:
-        """ValueError unless every array has its shape and every number is finite: what the cache may hold."""
-        f = self.features
-        if f.ndim != 2 or f.shape[1] != N_FEATURES or (self.mel is not None and len(self.mel) != len(f)):
-            raise ValueError(f"features of shape {f.shape}, expected [T, {N_FEATURES}]")
-        arrays = (f, self.beat_times, self.downbeat_times, *(() if self.mel is None else (self.mel,)))
+        """ValueError unless every field fits the others, as `analyze_audio` makes them: what the cache may hold
+        (an entry that passed a shape check but not this failed every run, or asked for all the memory)."""
+        f, mel, beats, downbeats = self.features, self.mel, self.beat_times, self.downbeat_times
+        arrays = (f, beats, downbeats, *(() if mel is None else (mel,)))
+        if not all(isinstance(a, np.ndarray) and a.dtype.kind == "f" for a in arrays):
+            raise ValueError("the analysis holds arrays that are not of real numbers")
+        if f.ndim != 2 or f.shape[1] != N_FEATURES or (mel is not None and mel.shape != (len(f), MEL_BANDS)):
+            raise ValueError(f"features of shape {f.shape}, expected [T, {N_FEATURES}] (mel [T, {MEL_BANDS}])")
         if not all(np.isfinite(a).all() for a in arrays) or not np.isfinite([self.tempo_bpm, self.duration_s]).all():
             raise ValueError("the analysis holds values that are not finite")
+        if self.fps != FPS or not (self.duration_s > 0 and abs(len(f) - self.duration_s * FPS) <= 1):
+            raise ValueError(f"{len(f)} frames do not make {self.duration_s:g} s at {self.fps} fps")
+        end = self.duration_s + 1 / FPS  # give or take a frame: the beat tracker's last frame may end after the audio
+        for what, times in (("beat", beats), ("downbeat", downbeats)):
+            if times.ndim != 1 or (np.diff(times) < 0).any() or (len(times) and not 0 <= times[0] <= times[-1] <= end):
+                raise ValueError(f"{what} times are not sorted times within the song")
+        if not np.isin(downbeats, beats).all():
+            raise ValueError("downbeats that are not beats")
+        ibi = np.diff(beats)
+        if not np.isclose(self.tempo_bpm, 60.0 / np.median(ibi) if len(ibi) else 0.0, rtol=1e-9, atol=0.0):
+            raise ValueError(f"a tempo of {self.tempo_bpm:g} BPM that is not the beats'")
 
     def save(self, path: str | Path) -> None:
         """Write an .npz (no pickles), atomically so a killed run never leaves half a cache entry, and two
@@ -131,9 +144,9 @@ class MusicAnalysis:
                     fps=int(meta["fps"]),
                     mel=z["mel"] if "mel" in z.files else None,
                 )
-        except (OSError, EOFError, KeyError, TypeError, AttributeError, zipfile.BadZipFile) as e:
+            result.check()
+        except Exception as e:  # any way a file fails to be an entry (damaged zip, nested JSON, an overflow...)
             raise ValueError(first_line(e)) from e
-        result.check()
         return result
 
 

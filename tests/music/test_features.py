@@ -228,3 +228,70 @@ def test_silent_and_short(tmp_path: Path) -> None:
     assert not list((tmp_path / "cache").glob("*.npz"))
 
 
+
+
+def _entry_with(entry: Path, good: Path, field: str, value: object) -> None:
+    """`good`'s cache entry with one field (an array, or a key of its metadata) replaced."""
+    import json
+
+    with np.load(good) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(str(arrays["meta"]))
+    if field in meta:
+        meta[field] = value
+        arrays["meta"] = np.array(json.dumps(meta))
+    elif field == "meta":
+        arrays["meta"] = np.array(value)
+    else:
+        arrays[field] = value(arrays[field]) if callable(value) else value
+    np.savez(entry, **arrays)
+
+
+BAD_FIELDS = {
+    "negative duration": ("duration_s", -5.0),
+    "huge duration": ("duration_s", 1e12),
+    "duration not the frames'": ("duration_s", 3.0),
+    "other fps": ("fps", 1000),
+    "infinite fps": ("fps", float("inf")),
+    "negative tempo": ("tempo_bpm", -1.0),
+    "tempo not the beats'": ("tempo_bpm", 999.0),
+    "meta nested deep": ("meta", "[" * 100_000 + "]" * 100_000),
+    "meta not a mapping": ("meta", "[1, 2]"),
+    "beats unsorted": ("beat_times", lambda b: b[::-1].copy()),
+    "beats after the song": ("beat_times", lambda b: b + 100.0),
+    "beats as a table": ("beat_times", lambda b: b[:, None]),
+    "downbeats not beats": ("downbeat_times", lambda d: d + 0.01),
+    "features as text": ("features", lambda f: f.astype(str)),
+    "features as whole numbers": ("features", lambda f: f.astype(np.int64)),
+    "a frame missing": ("features", lambda f: f[:-2]),
+    "mel of another width": ("mel", lambda m: m[:, :10]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_FIELDS))
+def test_cache_metadata_must_fit_the_arrays(song: Path, tmp_path: Path, case: str) -> None:
+    """Issue 26 item 7: an entry whose fields disagree with each other (a negative or huge duration, a tempo or
+    fps that is not the arrays', any exception while reading it) is not an analysis: a ValueError, which
+    `analyze_music` answers by recomputing with its one-line notice."""
+    good = tmp_path / "cache"
+    analyze_music(song, cache_dir=good, with_mel=True, workers=1)
+    (entry,) = good.glob("*.npz")
+    field, value = BAD_FIELDS[case]
+    _entry_with(tmp_path / "bad.npz", entry, field, value)
+    with pytest.raises(ValueError) as info:
+        MusicAnalysis.load(tmp_path / "bad.npz")
+    assert "\n" not in str(info.value)
+
+
+def test_cache_entry_with_a_bad_duration_is_recomputed(song: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    cache = tmp_path / "cache"
+    first = analyze_music(song, cache_dir=cache, workers=1)
+    (entry,) = cache.glob("*.npz")
+    _entry_with(entry, entry, "duration_s", -5.0)
+    capsys.readouterr()
+    again = analyze_music(song, cache_dir=cache, workers=1)
+    notice = capsys.readouterr().err.strip()
+    assert notice.startswith("dancenet: the cached analysis") and "\n" not in notice, notice
+    assert again.duration_s == first.duration_s
+    assert MusicAnalysis.load(entry).duration_s == first.duration_s  # replaced by a good entry
