@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data.build import PairedSequence, build_dataset
-from ..data.pack import read_pack
 from ..data.dance_with_melody import read_manifest
+from ..data.pack import read_pack
 from ..data.split import load_split
 from ..generate import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
 from ..model.bundle import DanceNetBundle

@@ -14,7 +14,13 @@ from dancenet_core.data.pack import load_pack, save_pack
 from dancenet_core.data.windows import WindowSampler
 from dancenet_core.model.dancenet import DanceNet, DanceNetConfig
 from dancenet_core.representation import FeatureLayout, Normalizer
-from dancenet_core.training.dancenet import own_mask, travel_loss, warm_start, with_own_predictions
+from dancenet_core.training.dancenet import (
+    own_mask,
+    prime_rmsprop,
+    travel_loss,
+    warm_start,
+    with_own_predictions,
+)
 from dancenet_core.training.tensor_windows import TensorWindows
 
 
@@ -155,3 +161,29 @@ def test_device_windows_are_the_samplers_windows(tmp_path: Path) -> None:
     back = load_pack(pack)
     assert [p.seq for p in back] == ["S0", "S1"] and back[1].style == "waltz"
     np.testing.assert_allclose(back[0].motion, pairs[0].motion, rtol=1e-3, atol=1e-3)
+
+
+def test_a_primed_rmsprop_takes_an_ordinary_first_step() -> None:
+    """From an empty history RMSprop moves every weight by 10x the learning rate on its first step (what
+    jolted warm starts); primed with the mean squared gradient, the first step is about the rate."""
+    x, music = _inputs()
+
+    def first_step(prime: bool) -> float:
+        net = _net(1, ["a"], residual=False, seed=0).train()
+        opt = torch.optim.RMSprop(net.parameters(), lr=1e-4)
+
+        def batch_loss() -> tuple[torch.Tensor, dict]:
+            noisy = x + 0.04 * torch.randn_like(x)
+            return net.loss(net(noisy, music, torch.tensor([0, 0])), x[:, 1:], music[:, 1:])
+
+        if prime:
+            prime_rmsprop(opt, net, batch_loss)
+        before = [p.detach().clone() for p in net.parameters()]
+        opt.zero_grad()
+        batch_loss()[0].backward()
+        opt.step()
+        moved = torch.cat([(p.detach() - b).abs().flatten() for p, b in zip(net.parameters(), before, strict=True)])
+        return moved[moved > 0].median().item() / 1e-4
+
+    assert first_step(prime=False) > 9.0
+    assert first_step(prime=True) < 3.0
