@@ -2,7 +2,8 @@
 
 A map is {"name": ..., "description": ..., "bones": {"<SMPL-X joint>": "<bone>", ...}}. Joints left out
 of a map, and optional joints whose bone the armature lacks, are simply not driven; the joints in
-`rigdef.REQUIRED_JOINTS` must resolve or the dance could not read as a dance. Auto goes by names first and
+`rigdef.REQUIRED_JOINTS` and one of `rigdef.SPINE_JOINTS` must resolve or the dance could not read as a dance
+(a spine bone a rig lacks has its turn spread over those it has). Auto goes by names first and
 by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 """
 
@@ -17,7 +18,7 @@ from pathlib import Path
 from dancenet_core.errors import DanceNetError
 from dancenet_core.skeleton import JOINT_NAMES
 
-from .rigdef import REQUIRED_JOINTS
+from .rigdef import REQUIRED_JOINTS, SPINE_JOINTS
 from .shapemap import BODY_JOINTS, RestBone, match_shape
 
 MAP_DIR = Path(__file__).parent / "bonemaps"
@@ -135,6 +136,9 @@ def resolve(bone_map: BoneMap, bone_names: Iterable[str], armature: str) -> tupl
         for j in REQUIRED_JOINTS
         if j not in found
     ]
+    if not any(j in found for j in SPINE_JOINTS):
+        missing.append("the spine (no bone for " + ", ".join(
+            f"{j} ({_shown(bone_map.bones[j])})" if j in bone_map.bones else j for j in SPINE_JOINTS) + ")")
     if missing:
         raise DanceNetError(
             f"Bone map '{bone_map.name}' does not fit armature '{armature}': missing {', '.join(missing)}. "

@@ -103,6 +103,15 @@ def _reach(
     return turn_upper, turn_lower
 
 
+def _mapped_chain_child(skeleton: Skeleton, j: int, mapped: dict[int, str]) -> int | None:
+    """The mapped joint bone j points at: its direction child, or, when the rig has no bone for that one (a spine
+    of fewer bones), the first mapped joint further along the same chain."""
+    child = rigdef.direction_child(skeleton, j)
+    while child is not None and child not in mapped:
+        child = rigdef.direction_child(skeleton, child)
+    return child
+
+
 def root_bone_of(rig: bpy.types.Object, hips: str) -> str | None:
     """The bone at the top of the hips bone's chain (a root bone for engines' root motion), if any."""
     parents = rig.data.bones[hips].parent_recursive
@@ -152,10 +161,13 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     scale = _leg_length(theirs, skeleton) / _leg_length(dict(enumerate(ours)), skeleton)
 
     delta: dict[int, np.ndarray] = {}
+    spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig has no bone for
     for j, bone in mapped.items():
-        child = rigdef.direction_child(skeleton, j)
-        if child in mapped and np.linalg.norm(theirs[child] - theirs[j]) > 1e-6:
+        child = _mapped_chain_child(skeleton, j, mapped)
+        if child is not None and np.linalg.norm(theirs[child] - theirs[j]) > 1e-6:
             v_theirs, v_ours = theirs[child] - theirs[j], ours[child] - ours[j]
+            if child != rigdef.direction_child(skeleton, j):
+                spans[j] = child
         else:
             v_theirs, v_ours = rest[bone][:3, 1], ours_axis[j]
         delta[j] = rigdef.min_rotation(v_theirs, q @ v_ours)
@@ -166,8 +178,15 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     root_target = theirs[0] + scale * (motion.root_positions @ c.T - ours[0]) @ q.T
 
     def aim(j: int, bone: str) -> np.ndarray:
-        """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest."""
-        return g[:, j] @ (delta[j] @ (rest[bone][:3, :3] / np.linalg.norm(rest[bone][:3, :3], axis=0)))
+        """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest. A bone
+        that stands for joints the rig lacks too (a spine of fewer bones) also takes their bend: it points where
+        the dance puts the joint it reaches, so the missing bone's turn is spread over the ones present."""
+        turn = g[:, j] @ (delta[j] @ (rest[bone][:3, :3] / np.linalg.norm(rest[bone][:3, :3], axis=0)))
+        if j in spans:
+            k = spans[j]
+            turn = _min_rotations(np.einsum("tij,j->ti", g[:, j], q @ (ours[k] - ours[j])),
+                                  (p[:, k] - p[:, j]) @ qc.T) @ turn
+        return turn
 
     def head_offset(parent: str, child: str) -> np.ndarray:
         """Where `child`'s head sits in `parent`'s posed world frame (bones in between at rest)."""
