@@ -165,12 +165,12 @@ class NumpyStyleNet:
         self.state = dict(state)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        """[B, T, 15] classifier input -> [B, styles] logits."""
+        """[B, T, inputs] classifier input -> [B, styles] logits."""
         x = np.asarray(x, np.float32)
         return self._logits(lstm_input(self._frames(x, stride=2), self.state, "lstm"))
 
     def windows(self, x: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
-        """Logits [W, styles] of the windows x[s : s + length] of one song's input [T, 15]. Windows overlap
+        """Logits [W, styles] of the windows x[s : s + length] of one song's input [T, inputs]. Windows overlap
         (30 s every 5 s), so what is computed frame by frame (the convs, or the baseline's FC, and the LSTM's
         input share) runs once over the song; only the recurrences run per window."""
         step = 1 if self.arch == "baseline" else 2
@@ -179,7 +179,7 @@ class NumpyStyleNet:
         return self._logits(frames[np.asarray(starts)[:, None] + step * np.arange(count)])
 
     def _frames(self, x: np.ndarray, stride: int) -> np.ndarray:
-        """[B, T, 15] -> the per-frame layers' output [B, T', 32 x 15] (the last conv at `stride`)."""
+        """[B, T, inputs] -> the per-frame layers' output [B, T', 32 x inputs] (the last conv at `stride`)."""
         if self.arch == "baseline":
             return np.maximum(linear(x, self.state, "fc_in.0"), 0.0)
         return time_convs(x, self.state, ["conv.0", "conv.3", "conv.6"], pad_end=False, last_stride=stride)

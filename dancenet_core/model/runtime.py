@@ -20,7 +20,7 @@ from scipy.special import softmax
 from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
-from ..music.style import StyleClassifier
+from ..music.style import StyleClassifier, weights_inputs
 from ..representation import FeatureLayout, Normalizer
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .config import DanceNetConfig
@@ -233,7 +233,8 @@ class RuntimeStyleModel(StyleClassifier):
         hint = "reinstall the package or choose the style (--style)"
         arrays, meta = read_arrays(path, "style classifier weights", hint)
         try:
-            return cls(NumpyStyleNet(meta["arch"], _group(arrays, "state")), meta["styles"], meta["config"],
+            state = _group(arrays, "state")
+            return cls(NumpyStyleNet(meta["arch"], state), meta["styles"], weights_inputs(state, meta["config"]),
                        meta["meta"])
         except (KeyError, TypeError) as e:
             raise DanceNetError(f"{path} is not a style classifier weights file ({first_line(e)}); {hint}") from e

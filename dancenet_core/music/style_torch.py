@@ -11,41 +11,49 @@ import torch
 from torch import nn
 
 from ..checkpoint import read_checkpoint, save_weights
-from .features import N_FEATURES
-from .style import ARCHS, CHECKPOINT_FORMAT, DEFAULT_WEIGHTS, DROPOUT, HIDDEN, StyleClassifier
+from .style import (
+    ARCHS,
+    CHECKPOINT_FORMAT,
+    DEFAULT_WEIGHTS,
+    DROPOUT,
+    HIDDEN,
+    N_INPUTS,
+    StyleClassifier,
+    weights_inputs,
+)
 
 
 class StyleConvNet(nn.Module):
     """Temporal conv (kernel 2 along time, 1-16-24-32) + Bi-LSTM + FC: the paper's classifier."""
 
-    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT) -> None:
+    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT, inputs: int = N_INPUTS) -> None:
         super().__init__()
         layers: list[nn.Module] = []
         for i, (cin, cout) in enumerate(((1, 16), (16, 24), (24, 32))):
             stride = (2, 1) if i == 2 else (1, 1)
             layers += [nn.Conv2d(cin, cout, (2, 1), stride=stride), nn.BatchNorm2d(cout), nn.ReLU()]
         self.conv = nn.Sequential(*layers, nn.Dropout(dropout))
-        self.lstm = nn.LSTM(32 * N_FEATURES, hidden, batch_first=True, bidirectional=True)
+        self.lstm = nn.LSTM(32 * inputs, hidden, batch_first=True, bidirectional=True)
         self.fc = nn.Linear(2 * hidden, n_styles)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """[B, T, 15] features -> [B, n_styles] logits."""
-        h = self.conv(x.unsqueeze(1))  # [B, 32, T', 15]
-        h = h.permute(0, 2, 1, 3).flatten(2)  # [B, T', 32 * 15]
+        """[B, T, inputs] classifier input -> [B, n_styles] logits."""
+        h = self.conv(x.unsqueeze(1))  # [B, 32, T', inputs]
+        h = h.permute(0, 2, 1, 3).flatten(2)  # [B, T', 32 * inputs]
         out, _ = self.lstm(h)
         return self.fc(out.mean(dim=1))
 
 class StyleBaseline(nn.Module):
     """The paper's baseline: the temporal convolutions replaced by a per-frame fully connected layer."""
 
-    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT) -> None:
+    def __init__(self, n_styles: int, hidden: int = HIDDEN, dropout: float = DROPOUT, inputs: int = N_INPUTS) -> None:
         super().__init__()
-        self.fc_in = nn.Sequential(nn.Linear(N_FEATURES, 32 * N_FEATURES), nn.ReLU(), nn.Dropout(dropout))
-        self.lstm = nn.LSTM(32 * N_FEATURES, hidden, batch_first=True, bidirectional=True)
+        self.fc_in = nn.Sequential(nn.Linear(inputs, 32 * inputs), nn.ReLU(), nn.Dropout(dropout))
+        self.lstm = nn.LSTM(32 * inputs, hidden, batch_first=True, bidirectional=True)
         self.fc = nn.Linear(2 * hidden, n_styles)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """[B, T, 15] features -> [B, n_styles] logits."""
+        """[B, T, inputs] classifier input -> [B, n_styles] logits."""
         out, _ = self.lstm(self.fc_in(x))
         return self.fc(out.mean(dim=1))
 
@@ -73,9 +81,10 @@ class StyleModel(StyleClassifier):
     @classmethod
     def load(cls, path: str | Path = DEFAULT_WEIGHTS) -> StyleModel:
         ckpt = read_checkpoint(path, CHECKPOINT_FORMAT, "style model", "dancenet train style")
-        net = build_net(ckpt["arch"], len(ckpt["styles"]), **ckpt["config"])
+        config = weights_inputs(ckpt["state_dict"], ckpt["config"])
+        net = build_net(ckpt["arch"], len(ckpt["styles"]), **config)
         net.load_state_dict(ckpt["state_dict"])
-        return cls(net, ckpt["arch"], ckpt["styles"], ckpt["config"], ckpt["meta"])
+        return cls(net, ckpt["arch"], ckpt["styles"], config, ckpt["meta"])
 
     def save(self, path: str | Path) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)

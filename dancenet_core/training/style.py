@@ -18,15 +18,16 @@ from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
 from ..model.export import style_to_runtime
-from ..music.features import BEAT_COL, CHROMA_COLS, DOWNBEAT_COL, FPS, ONSET_COL, MusicAnalysis, analyze_music
+from ..music.features import CHROMA_COLS, FPS, N_FEATURES, ONSET_COL, MusicAnalysis, analyze_music
 from ..music.style import (
     BASELINE_WEIGHTS,
     DEFAULT_WEIGHTS,
     DROPOUT,
     HIDDEN,
     HOP_S,
+    N_INPUTS,
     WINDOW_S,
-    bump_track,
+    draw_rhythm,
 )
 from ..music.style_torch import StyleModel, build_net
 from ..series import stretch_frames
@@ -74,7 +75,7 @@ def load_songs(rows: Sequence[Recording], seqs: Sequence[str], log: Callable[[st
     return songs
 
 def transpose_chroma(x: np.ndarray, semitones: int) -> np.ndarray:
-    """A copy of [T, 15] features in another key: the 12 chroma bins rolled, rhythm columns untouched. A key is
+    """A copy of [T, >= 15] features in another key: the 12 chroma bins rolled, rhythm columns untouched. A key is
     no style cue, and with 4-5 songs of a style the net would otherwise learn their keys."""
     out = x.copy()
     out[:, CHROMA_COLS] = np.roll(x[:, CHROMA_COLS], semitones, axis=1)
@@ -82,17 +83,19 @@ def transpose_chroma(x: np.ndarray, semitones: int) -> np.ndarray:
 
 def augment_window(song: MusicAnalysis, window: int, rng: np.random.Generator) -> np.ndarray:
     """A random training window of a song's classifier input: random offset, tempo x U(1 -+ AUG_TEMPO) (window
-    * rate frames played back at `rate`; the beat and downbeat bumps are redrawn at the moved beat times, so
-    they keep their height and beats per bar stay as they are), random key, a gain on the onset channel
+    * rate frames played back at `rate`; the beat and downbeat bumps, beats per bar and tempo are redrawn from
+    the moved beat times, so the bumps keep their height, beats per bar stay as they are and the tempo column
+    reads the tempo played), random key, a gain on the onset channel
     (activation heights differ between recordings more than between styles) and Gaussian noise; chroma is
     blanked with probability AUG_CHROMA_DROP so that the net cannot lean on harmony alone."""
     feats = song.features
     span = min(len(feats), int(round(window * rng.uniform(1 - AUG_TEMPO, 1 + AUG_TEMPO))))
     start = int(rng.integers(len(feats) - span + 1))
-    x = transpose_chroma(stretch_frames(feats[start : start + span], window).astype(feats.dtype), int(rng.integers(12)))
+    x = np.zeros((window, N_INPUTS), np.float32)
+    x[:, :N_FEATURES] = transpose_chroma(stretch_frames(feats[start : start + span], window), int(rng.integers(12)))
     scale = (window - 1) / max(1, span - 1)  # source frame start + u lands on window frame u * scale
-    for col, times in ((BEAT_COL, song.beat_times), (DOWNBEAT_COL, song.downbeat_times)):
-        x[:, col] = bump_track((times * song.fps - start) * scale, window)
+    draw_rhythm(x, (song.beat_times * song.fps - start) * scale, (song.downbeat_times * song.fps - start) * scale,
+                song.fps)
     x[:, ONSET_COL] *= rng.uniform(1 - AUG_GAIN, 1 + AUG_GAIN)
     if rng.random() < AUG_CHROMA_DROP:
         x[:, CHROMA_COLS] = 0.0
@@ -129,7 +132,7 @@ def train_style_net(
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     window = int(WINDOW_S * FPS)
-    config = {"hidden": hidden, "dropout": dropout}
+    config = {"hidden": hidden, "dropout": dropout, "inputs": N_INPUTS}
     net = build_net(arch, len(styles), **config)
     model = StyleModel(net, arch, styles, config, {"fps": FPS, "window_s": WINDOW_S, "hop_s": HOP_S})
     opt = torch.optim.Adam(net.parameters(), lr=lr)

@@ -24,8 +24,8 @@ from dancenet_core.model.numpy_nets import toe_heights
 from dancenet_core.model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
 from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
 from dancenet_core.music.features import FPS as MUSIC_FPS
-from dancenet_core.music.features import MusicAnalysis, analyze_music, music_at_frames
-from dancenet_core.music.style import classifier_input
+from dancenet_core.music.features import N_FEATURES, MusicAnalysis, analyze_music, music_at_frames
+from dancenet_core.music.style import N_INPUTS, classifier_input
 from dancenet_core.music.style_torch import StyleModel, build_net
 from dancenet_core.representation import Normalizer, encode
 from dancenet_core.skeleton import DEFAULT_SKELETON
@@ -139,18 +139,19 @@ def test_shipped_music_encoder_on_random_and_real_music(shipped: tuple, analysis
 
 
 @pytest.mark.parametrize("arch", ["conv", "baseline"])
-def test_style_networks_on_random_input(arch: str) -> None:
+@pytest.mark.parametrize("inputs", [N_INPUTS, N_FEATURES])  # with metre and tempo, and weights from before them
+def test_style_networks_on_random_input(arch: str, inputs: int) -> None:
     """Windows one by one, and a song's overlapping windows at once (an odd last start, and a song shorter
     than a window), against torch on each window."""
     torch.manual_seed(2)
-    model = StyleModel(build_net(arch, 4), arch, ["a", "b", "c", "d"], {})
+    model = StyleModel(build_net(arch, 4, inputs=inputs), arch, ["a", "b", "c", "d"], {"inputs": inputs})
     _randomise_batchnorm(model.net, 3)
     model.eval_mode()
     net = style_to_runtime(model).net
     rng = np.random.default_rng(2)
-    x = rng.normal(size=(5, 300, 15)).astype(np.float32)
+    x = rng.normal(size=(5, 300, inputs)).astype(np.float32)
     np.testing.assert_allclose(net(x), model.logits(x), atol=NETS, rtol=0)
-    song = rng.normal(size=(457, 15)).astype(np.float32)
+    song = rng.normal(size=(457, inputs)).astype(np.float32)
     for starts, length in ((np.array([0, 50, 100, 157]), 300), (np.array([0]), 120)):
         windows = np.stack([song[s : s + length] for s in starts])
         np.testing.assert_allclose(net.windows(song[: max(starts) + length], starts, length), model.logits(windows),

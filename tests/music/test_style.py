@@ -12,12 +12,15 @@ import pytest
 import soundfile as sf
 import torch
 from made_up import analysis, peak_frames, peaks
+from scipy.special import softmax
 from torch import nn
 
 from dancenet_core import cli
 from dancenet_core.data.dance_with_melody import read_manifest
 from dancenet_core.data.split import SPLIT_FILE
 from dancenet_core.errors import DanceNetError
+from dancenet_core.model.export import style_to_runtime
+from dancenet_core.model.runtime import RuntimeStyleModel
 from dancenet_core.music import style as S
 from dancenet_core.music import style_torch as T
 from dancenet_core.music.audio import Audio, load_audio
@@ -33,7 +36,7 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 @pytest.mark.parametrize("frames", [300, 37])
 def test_forward_shapes(arch: str, frames: int) -> None:
     net = T.build_net(arch, 3).eval()
-    assert net(torch.randn(4, frames, 15)).shape == (4, 3)
+    assert net(torch.randn(4, frames, S.N_INPUTS)).shape == (4, 3)
 
 
 def test_conv_layers_follow_the_paper() -> None:
@@ -93,6 +96,42 @@ def test_style_names_come_from_metadata(tmp_path: Path) -> None:
         np.testing.assert_allclose(model.classify(song).probabilities, loaded.classify(song).probabilities)
 
 
+def test_weights_from_before_the_meter_and_tempo_columns_still_run(tmp_path: Path) -> None:
+    """A checkpoint whose config has no "inputs" (trained on the 15 columns before metre and tempo) loads, in
+    torch and in numpy, and reads the first 15 columns of today's classifier input."""
+    net = T.build_net("conv", 2, hidden=8, dropout=0.1, inputs=15)
+    old = T.StyleModel(net, "conv", ["polka", "tango"], {"hidden": 8, "dropout": 0.1})
+    old.save(tmp_path / "old.pt")
+    loaded = T.StyleModel.load(tmp_path / "old.pt")
+    assert loaded.inputs == 15
+    song = analysis(np.random.default_rng(0).random((400, 15), dtype=np.float32))
+    x = S.classifier_input(song)[:, :15]
+    np.testing.assert_allclose(loaded.classify(song).window_probabilities[0],
+                               softmax(old.logits(x[None, :300]), axis=1)[0], rtol=1e-5)
+    style_to_runtime(loaded).save(tmp_path / "old.npz")
+    runtime = RuntimeStyleModel.load(tmp_path / "old.npz")
+    assert runtime.inputs == 15
+    np.testing.assert_allclose(runtime.classify(song).probabilities, loaded.classify(song).probabilities, atol=1e-5)
+
+
+def test_meter_and_tempo_columns() -> None:
+    """Beats every 5 frames (120 bpm at 10 fps), bars of 3 then of 4: the metre column is 0 in the 3-beat bars
+    and 1 in the 4-beat ones (frames outside take the nearest bar), the tempo column log2(120 / 120) = 0
+    everywhere, and one beat tracked a frame late moves neither; too few beats leave both columns 0."""
+    beats = np.arange(0, 100, 5.0)
+    downbeats = np.array([0, 15, 30, 50, 70.0])  # bars of 3, 3, 4, 4 beats
+    beats[8] += 1.0
+    x = S.meter_tempo(beats, downbeats, 110, 10)
+    assert x.shape == (110, 2)
+    assert x.dtype == np.float32
+    np.testing.assert_array_equal(x[:30, 0], 0.0)
+    np.testing.assert_array_equal(x[30:, 0], 1.0)
+    np.testing.assert_allclose(x[:, 1], 0.0, atol=1e-6)
+    np.testing.assert_array_equal(S.meter_tempo(np.array([3.0]), np.array([3.0]), 20, 10), 0.0)
+    slow = S.meter_tempo(beats * 2, downbeats * 2, 200, 10)  # 60 bpm
+    np.testing.assert_allclose(slow[:, 1], -1.0, atol=1e-6)
+
+
 def test_load_errors_are_user_facing(tmp_path: Path) -> None:
     with pytest.raises(DanceNetError, match="not found"):
         T.StyleModel.load(tmp_path / "missing.pt")
@@ -142,6 +181,9 @@ def test_classifier_input_of_a_waltz_click_track() -> None:
     on_downbeats = np.flatnonzero(np.isin(beat_frames, downbeat_frames))
     assert len(on_downbeats) == len(downbeat_frames)
     assert (np.diff(on_downbeats) == 3).all()
+    assert x_in.shape == (len(analysis.features), S.N_INPUTS)
+    np.testing.assert_array_equal(x_in[:, S.METER_COL], 0.0)  # 3 beats a bar
+    np.testing.assert_allclose(x_in[:, S.TEMPO_COL], 0.0, atol=0.02)  # a beat every 0.5 s: 120 bpm
 
 
 # --------------------------------------------------------------------------- shipped weights and real data

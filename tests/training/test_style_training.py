@@ -7,15 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from made_up import analysis, clicks, peaks
+from made_up import analysis, clicks, peak_frames, peaks
 
 from dancenet_core.data.dance_with_melody import Recording
+from dancenet_core.music.style import METER_COL, N_INPUTS, TEMPO_COL
 from dancenet_core.training.cards import style_card
 from dancenet_core.training.style import AUG_TEMPO, Song, augment_window, score_songs, train_style_net, transpose_chroma
 
-
-@pytest.fixture(autouse=True)
-
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_training_learns_a_separable_toy_problem() -> None:
@@ -61,20 +60,24 @@ def test_transposing_by_an_octave_is_the_identity_and_leaves_rhythm_alone() -> N
 
 def test_augmented_windows_redraw_the_tracked_beats() -> None:
     """Windows of a 3/4 song at 60 bpm: the bumps come from the tracked beats (the sampled activations are
-    zeroed here), at full height; tempo stretch moves them (beats per window vary) but keeps 3 beats a bar."""
+    zeroed here), at full height; tempo stretch moves them and the tempo column reads the tempo played (from
+    the bumps' spacing), while the metre column stays at 3 beats a bar."""
     rng = np.random.default_rng(0)
     feats = clicks(900, 10, 3)
     feats[:, 12:14] = 0.0
     song = analysis(feats, beat_s=1.0, bar=3)
-    counts = []
+    tempos = []
     for _ in range(20):
         w = augment_window(song, 300, rng)
-        assert w.shape == (300, 15)
+        assert w.shape == (300, N_INPUTS)
         assert w.dtype == np.float32
         beats, downbeats = peaks(w[:, 12]), peaks(w[:, 13])
         assert 30 * (1 - AUG_TEMPO) - 2 <= beats <= 30 * (1 + AUG_TEMPO) + 2
         assert beats / max(1, downbeats) == pytest.approx(3, abs=0.5)
         assert w[:, 12].max() > 0.8
         assert w[:, 13].max() > 0.8
-        counts.append(beats)
-    assert max(counts) - min(counts) >= 3
+        assert np.abs(w[:, METER_COL]).max() < 0.1  # 3 beats a bar (noise only)
+        spacing = np.diff(peak_frames(w[:, 12])).mean()
+        assert w[:, TEMPO_COL].mean() == pytest.approx(np.log2(600 / spacing / 120), abs=0.03)
+        tempos.append(w[:, TEMPO_COL].mean())
+    assert 2 ** (max(tempos) - min(tempos)) >= 1 + AUG_TEMPO
