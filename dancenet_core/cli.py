@@ -28,7 +28,8 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
 
 
 def _terminate(signum: int, _frame: object) -> None:
-    """SIGTERM unwinds like Ctrl-C, so worker processes are stopped and half-written files removed."""
+    """SIGTERM and SIGHUP (a closed terminal) unwind like Ctrl-C, so worker processes are stopped and
+    half-written files removed."""
     raise SystemExit(128 + signum)
 
 
@@ -37,6 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser(argv).parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminate)
+        # SIGHUP too (none on Windows), unless ignored: `nohup dancenet ...` must outlive its terminal
+        if hasattr(signal, "SIGHUP") and signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
+            signal.signal(signal.SIGHUP, _terminate)
     try:
         return int(args.handler(args) or 0)
     except DanceNetError as e:

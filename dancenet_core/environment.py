@@ -1,11 +1,16 @@
 """Where things live and how much to run at once, as the environment decides: the shipped weights, the one
 cache folder (`$DANCENET_CACHE`, numba's compiled code inside it), the shared data folder (`$DANCENET_DATA`)
-and worker processes (`$DANCENET_WORKERS`). One home, so the command line, the add-on and training never disagree."""
+and worker processes (`$DANCENET_WORKERS`; they end with their parent). One home, so the command line, the add-on
+and training never disagree."""
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
 
 # Shipped checkpoints, the song split and the model cards.
@@ -44,3 +49,24 @@ def default_workers() -> int:
     if env.isdigit() and int(env) > 0:
         return int(env)
     return 1 if "bpy" in sys.modules else min(2, os.cpu_count() or 1)
+
+
+def end_with_parent(parent: int) -> None:
+    """First thing in a worker process: end it when its parent `parent` ends, however that ends (SIGKILL, a
+    closed terminal's SIGHUP), so no worker, nor a pipe it holds open (ffmpeg waits on those), outlives its
+    run. Linux: the kernel's parent-death signal; other POSIX systems: a thread that watches the parent."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(1, signal.SIGKILL, 0, 0, 0) == 0:  # PR_SET_PDEATHSIG
+            if os.getppid() != parent:  # the parent was gone before the signal was armed
+                os._exit(1)
+            return
+    if os.name == "posix":
+        threading.Thread(target=_exit_with, args=(parent,), daemon=True, name="end-with-parent").start()
+
+
+def _exit_with(parent: int) -> None:
+    """Exit once this process' parent is no longer `parent` (an orphan is adopted by another process)."""
+    while os.getppid() == parent:
+        time.sleep(0.5)
+    os._exit(1)

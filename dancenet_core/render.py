@@ -31,7 +31,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from .atomic import atomic_path
-from .environment import default_workers
+from .environment import default_workers, end_with_parent
 from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
@@ -713,7 +713,7 @@ def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, 
     pending: deque[Future] = deque()
     method = "fork" if "OpenGL" not in sys.modules and "fork" in mp.get_all_start_methods() else "spawn"
     with ProcessPoolExecutor(workers, mp_context=mp.get_context(method), initializer=_worker_start,
-                             initargs=(motion, width, height, floor, cams)) as pool:
+                             initargs=(os.getpid(), motion, width, height, floor, cams)) as pool:
         try:
             for chunk in chunks:
                 pending.append(pool.submit(_worker_draw, chunk))
@@ -729,9 +729,11 @@ def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, 
 _worker_state: dict = {}
 
 
-def _worker_start(motion: Motion, width: int, height: int, floor: float, cams: list[Camera]) -> None:
-    """Keep a rendering worker's dance; with Mesa's software rasteriser, one thread each (the workers
-    already fill the cores). The stage is built on the first chunk, so its errors reach the caller."""
+def _worker_start(parent: int, motion: Motion, width: int, height: int, floor: float, cams: list[Camera]) -> None:
+    """Keep a rendering worker's dance, ending with `parent` however it ends; with Mesa's software rasteriser,
+    one thread each (the workers already fill the cores). The stage is built on the first chunk, so its errors
+    reach the caller."""
+    end_with_parent(parent)
     os.environ.setdefault("LP_NUM_THREADS", "1")
     _worker_state.update(motion=motion, size=(width, height), floor=floor, cams=cams)
 

@@ -22,6 +22,7 @@ import ctypes
 import hashlib
 import json
 import multiprocessing as mp
+import os
 import sys
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_open
-from ..environment import cache_root, default_workers
+from ..environment import cache_root, default_workers, end_with_parent
 from ..errors import DanceNetError, first_line
 from ..progress import Progress
 from ..series import interp_frames, stretch_frames
@@ -291,12 +292,19 @@ def _executor(workers: int | None, jobs: int) -> Executor:
         workers = default_workers()
     workers = min(workers, jobs)
     if workers > 1 and "fork" in mp.get_all_start_methods():
-        return ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"), initializer=_keep_freed_memory)
+        return ProcessPoolExecutor(workers, mp_context=mp.get_context("fork"), initializer=_start_worker,
+                                   initargs=(os.getpid(),))
     return _InlineExecutor()
 
 
+def _start_worker(parent: int) -> None:
+    """Worker start-up: end with the analysing process, however it ends, and keep freed memory."""
+    end_with_parent(parent)
+    _keep_freed_memory()
+
+
 def _keep_freed_memory() -> None:
-    """Worker start-up. glibc's malloc maps each large array on its own and gives it back to the kernel
+    """glibc's malloc maps each large array on its own and gives it back to the kernel
     when freed, so every block's arrays were fresh pages to fault in and zero (~15 % of the cold
     analysis' CPU, more on a virtual machine that hands freed memory back to its host); a worker lives
     for one analysis, so it keeps what it frees for the next block: no separate mappings, no trimming."""
