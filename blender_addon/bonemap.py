@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from dancenet_core.errors import DanceNetError
+from dancenet_core.errors import DanceNetError, first_line
 from dancenet_core.skeleton import JOINT_NAMES
 
 from .rigdef import REQUIRED_JOINTS, SPINE_JOINTS
@@ -57,6 +58,8 @@ def parse(text: str, source: str) -> BoneMap:
         data = json.loads(text)
     except json.JSONDecodeError as e:
         raise DanceNetError(f"Bone map {source} is not valid JSON (line {e.lineno}: {e.msg})") from e
+    except (ValueError, RecursionError) as e:  # a number of thousands of digits, lists nested thousands deep
+        raise DanceNetError(f"Bone map {source} is JSON no bone map can be ({first_line(e, 80)})") from e
     bones = data.get("bones") if isinstance(data, dict) else None
     if not isinstance(bones, dict) or not all(
         isinstance(v, str) or (isinstance(v, list) and v and all(isinstance(x, str) for x in v)) for v in bones.values()
@@ -148,15 +151,17 @@ def resolve(bone_map: BoneMap, bone_names: Iterable[str], armature: str) -> tupl
 
 
 def user_maps(folder: Path | None) -> list[BoneMap]:
-    """The maps a user saved (Save Bone Map) in `folder`, by name; unreadable files are left out."""
+    """The maps a user saved (Save Bone Map) in `folder`, by name. A file that cannot be read as a map, whatever
+    the reason, is left out with a one-line notice on the console: one bad file must not break Auto for every
+    rig in every file."""
     if folder is None or not folder.is_dir():
         return []
     maps = []
     for path in sorted(folder.glob("*.json")):
         try:
             maps.append(load_file(path))
-        except DanceNetError:
-            continue
+        except Exception as e:  # whatever a saved file holds, the other maps still work
+            print(f"DanceNet: saved bone map {path.name} left out ({first_line(e, 160)})", file=sys.stderr)
     return maps
 
 

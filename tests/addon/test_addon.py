@@ -172,6 +172,29 @@ def test_shipped_bone_maps_name_known_joints(addon):
     assert all(b.startswith("DEF-") for b in addon.bonemap.load_shipped("RIGIFY").bones.values())
 
 
+def test_a_bad_saved_bone_map_is_left_out_with_a_notice(addon, tmp_path, capsys):
+    """Issue 26 item 8: one saved map nested thousands deep raised RecursionError out of user_maps(), breaking
+    Auto for every rig in every file; any file that cannot be read as a map is left out with a notice, and the
+    File bone map says what is wrong in one line."""
+    saved = tmp_path / "bonemaps"
+    saved.mkdir()
+    (saved / "good.json").write_text('{"name": "Good", "bones": {"pelvis": "Hips"}}')
+    bad = {"deep.json": "[" * 100_000 + "]" * 100_000, "digits.json": '{"bones": ' + "9" * 5000 + "}",
+           "binary.json": "\x00\xff", "list.json": "[1, 2]"}
+    for name, text in bad.items():
+        (saved / name).write_text(text, encoding="latin-1")
+    (saved / "folder.json").mkdir()
+    capsys.readouterr()
+    assert [m.name for m in addon.bonemap.user_maps(saved)] == ["Good"]
+    notices = capsys.readouterr().err.strip().splitlines()
+    assert sorted(line.split()[4] for line in notices) == sorted([*bad, "folder.json"]), notices
+    assert addon.bonemap.detect(list(JOINT_NAMES), "rig", saved).bones  # Auto still works
+    for name in ("deep.json", "digits.json"):
+        with pytest.raises(DanceNetError) as info:
+            addon.bonemap.load_file(saved / name)
+        assert "\n" not in str(info.value)
+
+
 # --- the Generate Dance operator --------------------------------------------------------------------
 
 
