@@ -1,4 +1,4 @@
-"""`dancenet train dancenet|footfix|style|motion-style`: the options come from the settings dataclasses
+"""`dancenet train dancenet|blend|footfix|style|motion-style`: the options come from the settings dataclasses
 (`training/configs.py`), so the command line and code that builds settings directly never disagree."""
 
 from __future__ import annotations
@@ -8,8 +8,10 @@ import json
 
 from ..environment import default_data_dir
 from ..music.style import ARCHS
+from ..training.blend import blend_files
 from ..training.cards import write_motion_style_card, write_style_card
 from ..training.configs import (
+    BlendSettings,
     FootfixSettings,
     MotionStyleSettings,
     StyleSettings,
@@ -25,7 +27,8 @@ from ..training.style import train_style
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="model", required=True, metavar="MODEL")
-    for name, settings, handler in (("dancenet", TrainSettings, _dancenet), ("footfix", FootfixSettings, _footfix),
+    for name, settings, handler in (("dancenet", TrainSettings, _dancenet), ("blend", BlendSettings, _blend),
+                                    ("footfix", FootfixSettings, _footfix),
                                     ("style", StyleSettings, _style),
                                     ("motion-style", MotionStyleSettings, _motion_style)):
         q = sub.add_parser(name, help=settings.__doc__.splitlines()[0], description=settings.__doc__)
@@ -35,6 +38,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _dancenet(args: argparse.Namespace) -> int:
     print(train(from_args(TrainSettings, args)))
+    return 0
+
+
+def _blend(args: argparse.Namespace) -> int:
+    s = from_args(BlendSettings, args)
+    print(blend_files(s.start, s.end, s.alpha, s.out))
     return 0
 
 

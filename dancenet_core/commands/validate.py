@@ -15,6 +15,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pack", type=Path, default=None,
                    help="a training pack (`dancenet data pack`) instead of the data folder (no madmom needed)")
     p.add_argument("--out", type=Path, default=Path("out/validate"))
+    p.add_argument("--drift", type=float, default=0.0, metavar="SECONDS",
+                   help="also: free-running dances of this length against the capture's level and root speed, "
+                        "per weights file (drift.png, drift.json; foot model off, the last temperature)")
     p.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
     p.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")
     p.add_argument("--takes", type=int, default=2)

@@ -43,6 +43,7 @@ from ..plotting import pyplot
 from ..render import contact_sheet
 from ..representation import decode
 from ..skeleton import BODY_JOINTS
+from . import drift
 from .dance_features import geometric_features, kinetic_features, smpl24_positions
 from .metrics import (
     BAS_SMOOTH_S,
@@ -347,6 +348,8 @@ def validate(args: argparse.Namespace) -> int:
                                       footfix=True, smoothing=smoothing))
                 print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
     table = measure(rows, ref, fps, style_net)
+    if args.drift:
+        free_running_levels(args, val)
     seconds = time.perf_counter() - t0
     md = markdown(table, seconds, 0, args.takes, len(ref["hit"])).replace(
         "every compared model trained 0 steps on the same windows. Produced by `dancenet evaluate`",
@@ -356,6 +359,22 @@ def validate(args: argparse.Namespace) -> int:
     write_text(args.out / "validation.json", json.dumps({"seconds": seconds, "rows": table}, indent=1) + "\n")
     print(md)
     return 0
+
+
+def free_running_levels(args: argparse.Namespace, val: list) -> None:
+    """Each weights file's free-running dances of `args.drift` seconds against the capture's level and root
+    speed (`evaluation/drift.py`): drift.png and drift.json in `args.out`."""
+    curves, figures, real = {}, {}, None
+    for path in args.weights:
+        bundle = DanceNetBundle.load(path)
+        name = run_label(Path(path), bundle)
+        gen, real = drift.free_running(bundle, val, args.drift, args.takes, args.temperatures[-1])
+        curves[name], figures[name] = gen, drift.summary(gen, real)
+        print(f"  {name}: free-running level {figures[name]['level_first']:.2f} -> "
+              f"{figures[name]['level_last']:.2f} of the capture's", flush=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    drift.plot(curves, real, args.out / "drift.png")
+    write_text(args.out / "drift.json", json.dumps(figures, indent=1) + "\n")
 
 
 def run_label(path: Path, bundle: DanceNetBundle) -> str:

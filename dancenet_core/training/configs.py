@@ -78,6 +78,16 @@ class TrainSettings:
 
 
 @dataclass
+class BlendSettings:
+    """A DanceNet between two runs of one lineage: (1 - alpha) x START + alpha x END, weight by weight."""
+
+    start: Path = _option(WEIGHTS_DIR / "dancenet.pt", "weights the END run was warm-started from")
+    end: Path = _option(Path("runs/dancenet/dancenet.pt"), "weights of the run continued from START")
+    alpha: float = _option(0.5, "how far toward END (0: START, 1: END)")
+    out: Path = _option(Path("runs/blend/dancenet.pt"), "bundle to write (its .npz twin goes beside it)")
+
+
+@dataclass
 class FootfixSettings:
     """The Foot Constraint Model and its LSTM baseline, on the training split and DanceNet's own dances."""
 
@@ -96,7 +106,7 @@ class StyleSettings:
     data: Path | None = _option(None, "shared data folder, or one with manifest.csv and the songs")
     out: Path = _option(WEIGHTS_DIR, "folder of the checkpoints, split and model card")
     split: Path | None = _option(None, "split file (reused if it exists; default OUT/song_split.json)")
-    steps: int = _option(200, "training steps")
+    steps: int = _option(400, "training steps")
     lr: float = _option(1e-3, "Adam learning rate")
     batch: int = _option(64, "windows per step")
     seed: int = _option(2020, "seed of the split (if made) and of training")

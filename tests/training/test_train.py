@@ -7,13 +7,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from dancenet_core.data.build import PairedSequence
 from dancenet_core.data.pack import load_pack, save_pack
 from dancenet_core.data.windows import WindowSampler
+from dancenet_core.errors import DanceNetError
+from dancenet_core.model.bundle import DanceNetBundle
 from dancenet_core.model.dancenet import DanceNet, DanceNetConfig
 from dancenet_core.representation import FeatureLayout, Normalizer
+from dancenet_core.skeleton import DEFAULT_SKELETON
+from dancenet_core.training.blend import blend
 from dancenet_core.training.dancenet import (
     own_mask,
     prime_rmsprop,
@@ -187,3 +192,22 @@ def test_a_primed_rmsprop_takes_an_ordinary_first_step() -> None:
 
     assert first_step(prime=False) > 9.0
     assert first_step(prime=True) < 3.0
+
+
+def test_a_blend_lies_between_its_ends_and_refuses_other_lineages() -> None:
+    """alpha 0 and 1 give the two networks' outputs; 0.5 gives each weight's midpoint; a network of other
+    sizes is refused in one line."""
+    start, end = _net(1, ["a"], residual=False, seed=0), _net(1, ["a"], residual=False, seed=1)
+    norm = Normalizer(np.zeros(12), np.ones(12), np.zeros(12, bool))
+    bundles = [DanceNetBundle(n, norm, DEFAULT_SKELETON, {}, {}) for n in (start, end)]
+    x, music = _inputs()
+    style = torch.tensor([0, 0])
+    with torch.no_grad():
+        for alpha, ref in ((0.0, start), (1.0, end)):
+            torch.testing.assert_close(blend(*bundles, alpha).model(x, music, style), ref(x, music, style))
+    half = blend(*bundles, 0.5).model.state_dict()
+    torch.testing.assert_close(half["decoder.3.weight"],
+                               (start.state_dict()["decoder.3.weight"] + end.state_dict()["decoder.3.weight"]) / 2)
+    other = DanceNetBundle(_net(2, ["a"], residual=False, seed=2), norm, DEFAULT_SKELETON, {}, {})
+    with pytest.raises(DanceNetError, match="different network settings"):
+        blend(bundles[0], other, 0.5)
