@@ -17,12 +17,20 @@ from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
 from ..model.bundle import DanceNetBundle
 from ..music.features import FEATURE_VERSION
-from ..music.style import BASELINE_WEIGHTS, BUMP_SIGMA_FRAMES, DEFAULT_WEIGHTS, WINDOW_S
+from ..music.style import (
+    BASELINE_WEIGHTS,
+    BUMP_SIGMA_FRAMES,
+    DEFAULT_WEIGHTS,
+    TEMPO_MEDIAN_BEATS,
+    TEMPO_REF_BPM,
+    WINDOW_S,
+)
 from ..music.style import HOP_S as STYLE_HOP_S
+from ..music.style import N_INPUTS as STYLE_INPUTS
 from ..music.style_torch import StyleModel
 from .motion_style import AUG_TEMPO as MOTION_AUG_TEMPO
 from .motion_style import Dance, load_dances
-from .style import AUG_CHROMA_DROP, AUG_GAIN, AUG_NOISE, VALIDATION, VALIDATION_WITH_TANGO
+from .style import AUG_CHROMA_DROP, AUG_GAIN, AUG_NOISE, VALIDATION, VALIDATION_METER_TEMPO, VALIDATION_WITH_TANGO
 from .style import AUG_TEMPO as STYLE_AUG_TEMPO
 
 
@@ -84,11 +92,14 @@ def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequen
         "## Data",
         "",
         "Dance with Melody (Tang et al. 2018) songs, the whole audio of each (not only the danced span); "
-        "research use only, no licence. Input: 15 channels at 10 fps in "
+        f"research use only, no licence. Input: {STYLE_INPUTS} channels at 10 fps in "
         f"{WINDOW_S:g}-second windows: the music features' deep chroma (12) and onset (1) (feature version "
-        f"`{FEATURE_VERSION}`), and in place of their beat and downbeat activations a bump of height 1 (Gaussian, "
+        f"`{FEATURE_VERSION}`), in place of their beat and downbeat activations a bump of height 1 (Gaussian, "
         f"sigma {BUMP_SIGMA_FRAMES:g} frame) at each beat and downbeat tracked by madmom's DBN (3 or 4 beats a "
-        "bar); see below for why. No two sequences share a recording (checked by waveform cross-correlation).",
+        "bar), and the metre and tempo spelt out from the same tracked beats: the number of beats in the bar "
+        "that each frame lies in, minus 3, and the local tempo as log2(bpm / "
+        f"{TEMPO_REF_BPM:g}), the median of {TEMPO_MEDIAN_BEATS} beat intervals; see below for why. No two "
+        "sequences share a recording (checked by waveform cross-correlation).",
         "",
         "| style | train songs | test songs |",
         "|---|---|---|",
@@ -104,9 +115,11 @@ def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequen
         f"Adam, learning rate {settings['lr']:g} divided by 10 at 60% and 83% of {settings['steps']} steps "
         f"(the supplement's schedule shape), batch {settings['batch']} windows, seed {settings['seed']}, "
         "cross-entropy; the last step is shipped. Each window: style drawn uniformly (waltz has most songs), "
-        f"then a song and a random offset; played up to {100 * STYLE_AUG_TEMPO:g}% faster or slower (chroma and "
-        "onset resampled in time, the bumps redrawn at the moved beat times: beats per second change, beats "
-        "per bar do not), transposed by a random number of semitones (chroma rolled), the onset channel times "
+        "then a song and a random offset; "
+        + (f"played up to {100 * STYLE_AUG_TEMPO:g}% faster or slower (chroma and onset resampled in time, the "
+           "bumps, beats per bar and tempo redrawn from the moved beat times: beats per second change, beats "
+           "per bar do not), " if STYLE_AUG_TEMPO else "played at its own tempo (no stretch: see below), ")
+        + "transposed by a random number of semitones (chroma rolled), the onset channel times "
         f"a gain in [{1 - AUG_GAIN:g}, {1 + AUG_GAIN:g}], plus Gaussian noise (sigma {AUG_NOISE:g})"
         + (f"; chroma blanked in {100 * AUG_CHROMA_DROP:g}% of windows. " if AUG_CHROMA_DROP else ". ")
         + f"Both models: Bi-LSTM of {conv.config['hidden']} units each way, dropout {conv.config['dropout']:g}, "
@@ -134,6 +147,17 @@ def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequen
         f"{VALIDATION_WITH_TANGO['400']} at 400: tango's songs (about 120-130 bpm, four beats a bar) are learnt, "
         "and cha-cha's, in the same tempo range, are taken for tango (see the confusion below). The style can "
         "always be chosen by hand (`--style`, the panel).",
+        "- Metre and tempo as inputs (issue 23): from the bumps alone the net had to count beats between "
+        "downbeats and time their spacing, and it called a held-out waltz rumba and cha-cha tango. Now beats per "
+        "bar and the local tempo are two more input columns. The tempo stretch of the augmentation then had to "
+        "go: cha-cha (115-125 bpm here) and tango (125-128 bpm) lie within any stretch tried. Balanced accuracy "
+        "by window (by song) of ours on the validation songs (one tango among them, DANCE_T_3, is taken for a "
+        "cha-cha by every setting):",
+        "",
+        "| setting | validation, balanced by window (by song) |",
+        "|---|---|",
+        *[f"| {setting} | {figures} |" for setting, figures in VALIDATION_METER_TEMPO.items()],
+        "",
         f"- Styles: the dance styles of the training data ({len(styles)} here) instead of the paper's two music "
         f"styles, and {sum(seconds[q] for q in split['train']) / 3600:.1f} hours of music instead of 35.7: hence "
         "the augmentation, the small Bi-LSTM "
@@ -354,7 +378,14 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         f"- RMSprop, lr {info['settings']['lr']} dropped by 10 at 77% of the run, batch {info['settings']['batch']}, "
         f"input dropout {cfg.input_dropout}, noise 0.04 on inputs and 0.01 on targets, gradient clip 10, "
         f"seed {info['settings']['seed']}.",
-        f"- Trained {info.get('steps')} steps in {info.get('train_seconds', 0) / 60:.0f} minutes on a 2-core CPU.",
+        f"- Trained {info.get('steps')} steps in {info.get('train_seconds', 0) / 60:.1f} minutes on "
+        f"{info.get('device', 'a 2-core CPU')}"
+        + (f"{', travel loss weight ' + format(info['settings']['travel_weight'], 'g')}"
+           if info["settings"].get("travel_weight") else "") + ".",
+        *([f"- Shipped as a blend (`dancenet train blend`): {1 - info['blend']['alpha']:g} x "
+           f"`{info['blend']['start']}` (step {info['blend']['start_steps']}) + {info['blend']['alpha']:g} x "
+           f"`{info['blend']['end']}` (step {info['blend']['end_steps']}), weight by weight."]
+          if "blend" in info else []),
         "",
         "## Test metrics",
         f"{held.capitalize()} loss (mixture NLL per modelled channel + 0.1 x contact BCE): "

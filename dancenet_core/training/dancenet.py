@@ -261,6 +261,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         "windows": len(train_windows.index),
         "cluster_sizes": train_windows.cluster_sizes.tolist(),
         "settings": asdict(args) | {"data": str(args.data)},
+        "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "CPU",
     }
 
     step, elapsed = 0, 0.0
