@@ -186,7 +186,9 @@ def main() -> int:
         archive = next(dist.glob("dancenet-*-linux_x64.zip"))
         result: dict = {"sizes": sizes(dist), "strip_s": STRIP_S, "first_click": {}}
         for python in args.pythons:
-            run = subprocess.run([python, __file__, "--one", str(archive)], capture_output=True, text=True, check=True)
+            run = subprocess.run([python, __file__, "--one", str(archive)], capture_output=True, text=True)
+            if run.returncode:
+                raise SystemExit(f"{python}: {run.stderr.strip()[-2000:]}")
             one = json.loads(run.stdout.strip().splitlines()[-1])
             result["first_click"][f"bpy {one['clicked_at_once']['bpy']}"] = one
     result |= {"wall_s": round(time.perf_counter() - t, 1), "cpu_count": os.cpu_count(),

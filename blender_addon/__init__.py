@@ -40,7 +40,9 @@ _warm_up_stop = threading.Event()  # this registration's; unregister sets it, re
 
 def _warm_up(stop: threading.Event) -> None:
     """The first Generate Dance's imports and numba compiles, done now rather than on the first click (17-30 s
-    from cold, issue 27). It never touches bpy, so disabling the add-on meanwhile only stops it early."""
+    from cold, issue 27). It never touches bpy, so disabling the add-on meanwhile only stops it early. Not a
+    daemon thread: one frozen mid-import or mid-compile when Python shuts down can hang the shutdown, so Python
+    waits for it instead; Blender disables its add-ons when it quits, so that wait is one step at most."""
     try:
         from dancenet_core.warmup import warm_up
 
@@ -56,7 +58,7 @@ def register() -> None:
     properties.register()
     menus.register()
     _warm_up_stop = threading.Event()
-    threading.Thread(target=_warm_up, args=(_warm_up_stop,), name="dancenet-warm-up", daemon=True).start()
+    threading.Thread(target=_warm_up, args=(_warm_up_stop,), name="dancenet-warm-up").start()
 
 
 def unregister() -> None:

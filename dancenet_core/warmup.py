@@ -1,6 +1,6 @@
 """Everything a first Generate Dance waits for that is not the song itself: the imports (madmom, scipy), the
 numba kernels (compiled, or read from numba's on-disk cache) and the shipped weights. The Blender add-on runs
-`warm_up` on a background thread when it is enabled, so the first click after installing does not spend its
+`warm_up` on a thread of its own when it is enabled, so the first click after installing does not spend its
 time compiling (issue 27: 17-30 s from cold on the 2-core machine, 2.5 s once compiled).
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
@@ -16,6 +16,7 @@ import numpy as np
 from .constants import DEFAULT_TEMPERATURE
 from .generate import foot_fixer, load_bundle, load_style_model, sample_dance
 from .model.sampler import Sampling, music_conditioning
+from .music import madmom_dbn, madmom_nets
 from .music.audio import MADMOM_SAMPLE_RATE, Audio
 from .music.features import N_FEATURES, analyze_audio
 
@@ -41,9 +42,10 @@ def _dance() -> None:
 
 
 def warm_up(cancelled: Callable[[], bool] = lambda: False) -> None:
-    """Load or compile what a Generate Dance needs, checking `cancelled` between the two halves (a compile
-    cannot be stopped midway). Safe beside a real run on another thread: numba compiles each kernel once."""
-    for step in (_analysis, _dance):
+    """Load or compile what a Generate Dance needs, checking `cancelled` between steps (a compile cannot be
+    stopped midway, so each kernel is a step of its own). Safe beside a real run on another thread: numba
+    compiles each kernel once."""
+    for step in (madmom_nets.load_compiled, madmom_dbn.load_compiled, _analysis, _dance):
         if cancelled():
             return
         step()
