@@ -42,6 +42,14 @@ def _is_armature(_self: Any, obj: bpy.types.Object) -> bool:
     return obj.type == "ARMATURE"
 
 
+# The song may be given relative to the .blend ("//song.ogg", read through bpy.path.abspath); Blender 4.5+ warns
+# unless the property says so, and 4.2-4.4 know no such option.
+_BLEND_RELATIVE = (
+    {"PATH_SUPPORTS_BLEND_RELATIVE"} if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties
+    else set()
+)
+
+
 class DanceNetSettings(bpy.types.PropertyGroup):
     music_source: EnumProperty(
         name="Music",
@@ -51,7 +59,8 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         ],
         default="FILE",
     )
-    music_file: StringProperty(name="Song", subtype="FILE_PATH", description="The song to dance to")
+    music_file: StringProperty(name="Song", subtype="FILE_PATH", description="The song to dance to",
+                               options={"ANIMATABLE"} | _BLEND_RELATIVE)
     style: EnumProperty(name="Style", items=_styles, description="Dance style (Auto: chosen from the music)")
     seed: IntProperty(
         name="Seed", min=0, default=0, description="Another seed, another dance to the same song"

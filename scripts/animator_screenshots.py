@@ -12,7 +12,9 @@ capsule per bone and rendered.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -22,14 +24,26 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "scripts"), str(ROOT / "tests" / "addon")]
 
 from doubles import convention_rest  # noqa: E402 (the DAZ-like rig the landing test builds)
-from panel_screenshot import paint, record_panel  # noqa: E402
+from panel_screenshot import paint, record_panel, song_in_project  # noqa: E402
 
 DAZ_TWISTS = {"left_shoulder": "lShldrTwist", "right_shoulder": "rShldrTwist", "left_elbow": "lForearmTwist",
               "right_elbow": "rForearmTwist", "left_hip": "lThighTwist", "right_hip": "rThighTwist"}
 
 
-def skin_capsules(rig: bpy.types.Object, radius: float = 0.035) -> None:
-    """One stretched UV sphere per bone, weighted fully to it: enough body to see the rig dance."""
+BODY_RADIUS = (  # metres, by the first match in the bone's name: a mannequin's proportions
+    (("Thumb", "Index", "Mid", "Ring", "Pinky", "Carpal", "Toe", "Metatarsal", "Jaw", "Eye", "Ear", "Tongue"), 0.012),
+    (("hip", "pelvis", "abdomen", "chest"), 0.11), (("Thigh",), 0.07), (("Shin", "neck", "Collar"), 0.05),
+    (("head",), 0.095), (("Shldr",), 0.045), (("Forearm", "ForeArm", "Elbow", "Foot"), 0.04), (("Hand",), 0.035),
+)
+
+
+def _radius(bone: str) -> float:
+    return next((r for keys, r in BODY_RADIUS if any(k in bone for k in keys)), 0.03)
+
+
+def skin_capsules(rig: bpy.types.Object) -> None:
+    """A capsule along each bone from head to tail, rounded over both joints so that neighbours meet, weighted
+    fully to it: a mannequin body on a rig that has no mesh, so the render reads as a figure."""
     verts, faces, groups = [], [], []
     for bone in rig.data.bones:
         head, tail = np.array(bone.head_local), np.array(bone.tail_local)
@@ -39,15 +53,15 @@ def skin_capsules(rig: bpy.types.Object, radius: float = 0.035) -> None:
         x = np.cross(y, [0.0, 0.0, 1.0] if abs(y[2]) < 0.9 else [1.0, 0.0, 0.0])
         x /= np.linalg.norm(x)
         z = np.cross(x, y)
-        r = radius * (0.35 if any(k in bone.name for k in ("Thumb", "Index", "Mid", "Ring", "Pinky")) else 1.0)
+        r = _radius(bone.name)
         base = len(verts)
-        rings, segs = 6, 8
+        rings, segs = 8, 12  # half the rings cap the head, half the tail
         for i in range(rings + 1):
             phi = np.pi * i / rings
+            end = head if i <= rings // 2 else tail
             for k in range(segs):
                 th = 2 * np.pi * k / segs
-                across = r * np.sin(phi) * (np.cos(th) * x + np.sin(th) * z)
-                verts.append((head + tail) / 2 + y * np.cos(phi) * length * 0.6 + across)
+                verts.append(end - y * r * np.cos(phi) + r * np.sin(phi) * (np.cos(th) * x + np.sin(th) * z))
         for i in range(rings):
             for k in range(segs):
                 a, b = base + i * segs + k, base + i * segs + (k + 1) % segs
@@ -55,12 +69,36 @@ def skin_capsules(rig: bpy.types.Object, radius: float = 0.035) -> None:
         groups.append((bone.name, range(base, len(verts))))
     mesh = bpy.data.meshes.new(f"{rig.name} body")
     mesh.from_pydata([tuple(v) for v in verts], [], faces)
+    mesh.shade_smooth()
     body = bpy.data.objects.new(mesh.name, mesh)
     bpy.context.scene.collection.objects.link(body)
     body.parent = rig
     for name, indices in groups:
         body.vertex_groups.new(name=name).add(list(indices), 1.0, "REPLACE")
     body.modifiers.new("Armature", "ARMATURE").object = rig
+
+
+def facing_frame(scene: bpy.types.Scene, rig: bpy.types.Object, feet: tuple[str, str], frames: range) -> int:
+    """The frame of `frames` where the dancer's feet point most toward the camera's side (-Y)."""
+
+    def toward_camera(frame: int) -> float:
+        scene.frame_set(frame)
+        left, right = (rig.pose.bones[f] for f in feet)
+        forward = rig.matrix_world.to_3x3() @ (left.tail - left.head + right.tail - right.head)
+        return -forward.y / max(forward.length, 1e-6)
+
+    return max(frames, key=toward_camera)
+
+
+def aim_camera(scene: bpy.types.Scene, rig: bpy.types.Object, hips: str) -> None:
+    """The camera 4 m in front of the dancer and a little to its side, 1 m up, aimed at its waist: the whole
+    figure, head to feet, large in the frame."""
+    target = rig.matrix_world @ rig.pose.bones[hips].head
+    target.z = 0.9
+    camera = scene.camera
+    camera.location = (target.x + 1.3, target.y - 3.8, 1.0)
+    camera.rotation_euler = (target - camera.location).to_track_quat("-Z", "Y").to_euler()
+    camera.data.lens = 50
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -82,7 +120,8 @@ def main(argv: list[str] | None = None) -> int:
         image.save(args.out / name, optimize=True)
         print(f"animator_screenshots: {args.out / name} ({image.width}x{image.height})")
 
-    props.music_source, props.music_file = "FILE", str(args.song.resolve())
+    project = Path(tempfile.mkdtemp(prefix="dancenet-animators-"))  # the panel shows //example_song.ogg
+    props.music_source, props.music_file = "FILE", song_in_project(args.song, project)
     props.use_part, props.part_start, props.part_end = True, 1, 480
     props.root_motion, props.takes, props.seed = "root-bone", 3, 1
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
@@ -109,12 +148,15 @@ def main(argv: list[str] | None = None) -> int:
     from blender_addon import render
 
     render.setup_preview(scene, rig, args.out / "unused.mp4", (640, 480), root_bone="hip")
+    frame = facing_frame(scene, rig, ("lFoot", "rFoot"), range(100, 241))
+    scene.frame_set(frame)
+    aim_camera(scene, rig, "hip")
     scene.render.image_settings.file_format = "PNG"
     scene.render.filepath = str(args.out / "4_daz_rig_dancing.png")
-    scene.frame_set(150)
     bpy.ops.render.render(write_still=True)
-    print(f"animator_screenshots: {args.out / '4_daz_rig_dancing.png'}")
+    print(f"animator_screenshots: {args.out / '4_daz_rig_dancing.png'} (frame {frame})")
     blender_addon.unregister()
+    shutil.rmtree(project)
     return 0
 
 

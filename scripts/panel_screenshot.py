@@ -1,10 +1,12 @@
-"""A screenshot of the DanceNet sidebar panel without a Blender window: docs/panel.png.
+"""A painting of the DanceNet sidebar panel's real layout, not a screenshot: docs/panel.png.
 
-The pip `bpy` module has no GUI, and no Blender binary could be downloaded here, so this runs the panel's
-real `draw()` against a recording stand-in for `UILayout`, fills every widget from the registered RNA
-(property names, values, enum labels, operator labels and polls), and paints that layout with Pillow in
-Blender's default dark theme. By default it first runs the real Generate Dance on the example song, so the
-panel shows a real analysis (tempo, style probabilities) and the export buttons.
+The pip `bpy` module has no GUI, and no Blender 4.2+ binary could be had here, so this runs the panel's real
+`draw()` against a recording stand-in for `UILayout`, fills every widget from the registered RNA (property
+names, values at their defaults, enum labels, operator labels and polls), and paints that layout with Pillow in
+the colours of Blender's default dark theme; its widgets are our drawings of Blender's, and the picture says so
+in a line under the panel. By default it first runs the real Generate Dance on the example song, copied beside
+a saved .blend so that the panel shows it as a user would see it (`//example_song.ogg`, no path of this
+machine), and the panel shows a real analysis (tempo, style probabilities) and the export buttons.
 
     .venv/bin/python scripts/panel_screenshot.py [--song examples/example_song.ogg] [--out docs/panel.png]
 """
@@ -12,7 +14,9 @@ panel shows a real analysis (tempo, style probabilities) and the export buttons.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -187,6 +191,7 @@ def _font(size: int) -> ImageFont.FreeTypeFont:
 
 FONT = _font(11 * S)
 TITLE_FONT = _font(12 * S)
+NOTE_FONT = _font(9 * S)
 
 
 def _dim(color: tuple[int, int, int], enabled: bool) -> tuple[int, int, int]:
@@ -392,12 +397,13 @@ def paint(
     header = round(UNIT * 1.3)
     inner = WIDTH - 2 * PANEL_PAD
     sections = [_layout(child, 0, 0, inner, 1.0, None) for child in root.children]
-    height = header + sum(sections) + (len(sections) - 1) * SECTION_GAP + 3 * PANEL_PAD
+    height = header + sum(sections) + (len(sections) - 1) * SECTION_GAP + 3 * PANEL_PAD + NOTE_FONT.size
     image = Image.new("RGB", (WIDTH + TAB_WIDTH, height), REGION)
     draw = ImageDraw.Draw(image)
 
     top = PANEL_PAD
-    draw.rounded_rectangle([PANEL_PAD // 2, top, WIDTH - PANEL_PAD // 2, height - PANEL_PAD], radius=5 * S, fill=PANEL)
+    bottom = height - PANEL_PAD - NOTE_FONT.size
+    draw.rounded_rectangle([PANEL_PAD // 2, top, WIDTH - PANEL_PAD // 2, bottom], radius=5 * S, fill=PANEL)
     draw.polygon([(PANEL_PAD + 2 * S, top + header / 2 - 3 * S), (PANEL_PAD + 10 * S, top + header / 2 - 3 * S),
                   (PANEL_PAD + 6 * S, top + header / 2 + 2 * S)], fill=TEXT)  # fmt: skip
     draw.text((PANEL_PAD + 16 * S, top + header / 2), title, fill=TEXT, font=TITLE_FONT, anchor="lm")
@@ -405,6 +411,8 @@ def paint(
     for child in root.children:  # the panel's root column: sections a little apart, as Blender spaces them
         y += _layout(child, PANEL_PAD, y, inner, 1.0, draw) + SECTION_GAP
 
+    note = "Painted from the panel's real layout; not a Blender capture"
+    draw.text((PANEL_PAD, height - PANEL_PAD // 2), note, fill=TEXT_DIM, font=NOTE_FONT, anchor="ld")
     draw.rectangle([WIDTH, 0, WIDTH + TAB_WIDTH, height], fill=TAB_BAR)
     y = 4 * S
     for name in (*tabs, title):
@@ -421,7 +429,15 @@ def paint(
     return image
 
 
-# --- the screenshot -------------------------------------------------------------------------------
+# --- the picture ----------------------------------------------------------------------------------
+
+
+def song_in_project(song: Path, project: Path) -> str:
+    """Save the scene as a .blend in `project` with a copy of `song` beside it and return the song's path as a
+    user's panel shows it, relative to the .blend ("//example_song.ogg"): no path of the machine that paints."""
+    shutil.copy(song, project / song.name)
+    bpy.ops.wm.save_as_mainfile(filepath=str(project / "dance.blend"))
+    return f"//{song.name}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -437,11 +453,12 @@ def main(argv: list[str] | None = None) -> int:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     blender_addon.register()
     props = bpy.context.scene.dancenet
-    props.music_source, props.music_file = "FILE", str(args.song.resolve())
-    if not args.no_generate and bpy.ops.dancenet.generate() != {"FINISHED"}:
-        print("panel_screenshot: Generate Dance failed (see above)", file=sys.stderr)
-        return 1
-    image = paint(record_panel(bpy.context))
+    with tempfile.TemporaryDirectory(prefix="dancenet-panel-") as project:
+        props.music_source, props.music_file = "FILE", song_in_project(args.song, Path(project))
+        if not args.no_generate and bpy.ops.dancenet.generate() != {"FINISHED"}:
+            print("panel_screenshot: Generate Dance failed (see above)", file=sys.stderr)
+            return 1
+        image = paint(record_panel(bpy.context))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     image.save(args.out, optimize=True)
     print(f"panel_screenshot: {args.out} ({image.width}x{image.height})")
