@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib.metadata
+import importlib.util
 import math
 import multiprocessing as mp
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -83,6 +86,7 @@ def gl_platform() -> str:
     A platform already named in PYOPENGL_PLATFORM is tried first. Each is tried in a child process
     before OpenGL is imported here, because PyOpenGL cannot switch platforms after its first import.
     """
+    _check_render_extra()
     wanted = os.environ.get("PYOPENGL_PLATFORM", "")
     if "OpenGL" in sys.modules:
         if wanted in _PLATFORMS:
@@ -101,9 +105,46 @@ def gl_platform() -> str:
             return platform
         failures.append(f"{platform}: {error}")
     raise DanceNetError(
-        f"no off-screen OpenGL works here ({'; '.join(failures)}); install the Debian packages in "
-        "scripts/apt-packages.txt (libegl1, libgl1-mesa-dri or libosmesa6)"
+        f"no off-screen OpenGL works here ({'; '.join(failures)}); install one (Debian/Ubuntu: apt-get install "
+        "libegl1 libgl1-mesa-dri libopengl0 libgl1 libglu1-mesa, or libosmesa6; a checkout lists them in "
+        "scripts/apt-packages.txt)"
     )
+
+
+# The oldest PyOpenGL the preview is tested with; pyrender pins 3.1.0, whose errors cannot even be passed back
+# from the render workers (`cannot pickle '_ctypes.CArgObject'`).
+_MIN_PYOPENGL = (3, 1, 10)
+
+
+def _check_render_extra() -> None:
+    """One line saying what to install when the render extra is missing (a pip install has no
+    scripts/apt-packages.txt to point at), or when pip gave pyrender the old PyOpenGL it pins."""
+    missing = [m for m in ("pyrender", "trimesh", "PIL", "OpenGL") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise DanceNetError(f"the preview needs the render extra ({', '.join(missing)} missing): "
+                            'pip install "dancenet[render]" "PyOpenGL>=3.1.10" (from a checkout: ".[render]")')
+    version = importlib.metadata.version("PyOpenGL")
+    if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
+        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview; "
+                            'install a newer one beside it: pip install "PyOpenGL>=3.1.10"')
+
+
+# The oldest PyOpenGL the preview is tested with; pyrender pins 3.1.0, whose errors cannot even be passed back
+# from the render workers (`cannot pickle '_ctypes.CArgObject'`).
+_MIN_PYOPENGL = (3, 1, 10)
+
+
+def _check_render_extra() -> None:
+    """One line saying what to install when the render extra is missing (a pip install has no
+    scripts/apt-packages.txt to point at), or when pip gave pyrender the old PyOpenGL it pins."""
+    missing = [m for m in ("pyrender", "trimesh", "PIL", "OpenGL") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise DanceNetError(f"the preview needs the render extra ({', '.join(missing)} missing): "
+                            'pip install "dancenet[render]" "PyOpenGL>=3.1.10" (from a checkout: ".[render]")')
+    version = importlib.metadata.version("PyOpenGL")
+    if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
+        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview; "
+                            'install a newer one beside it: pip install "PyOpenGL>=3.1.10"')
 
 
 def _probe(platform: str) -> str | None:
