@@ -129,24 +129,6 @@ def _check_render_extra() -> None:
                             'install a newer one beside it: pip install "PyOpenGL>=3.1.10"')
 
 
-# The oldest PyOpenGL the preview is tested with; pyrender pins 3.1.0, whose errors cannot even be passed back
-# from the render workers (`cannot pickle '_ctypes.CArgObject'`).
-_MIN_PYOPENGL = (3, 1, 10)
-
-
-def _check_render_extra() -> None:
-    """One line saying what to install when the render extra is missing (a pip install has no
-    scripts/apt-packages.txt to point at), or when pip gave pyrender the old PyOpenGL it pins."""
-    missing = [m for m in ("pyrender", "trimesh", "PIL", "OpenGL") if importlib.util.find_spec(m) is None]
-    if missing:
-        raise DanceNetError(f"the preview needs the render extra ({', '.join(missing)} missing): "
-                            'pip install "dancenet[render]" "PyOpenGL>=3.1.10" (from a checkout: ".[render]")')
-    version = importlib.metadata.version("PyOpenGL")
-    if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
-        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview; "
-                            'install a newer one beside it: pip install "PyOpenGL>=3.1.10"')
-
-
 def _probe(platform: str) -> str | None:
     """None if pyrender renders with `platform` in a child process, else the last line of its error."""
     env = {**os.environ, "PYOPENGL_PLATFORM": platform}
