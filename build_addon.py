@@ -40,7 +40,11 @@ PLATFORMS: dict[str, tuple[str, ...]] = {
     "macos-arm64": ("macosx_12_0_arm64", "macosx_11_0_arm64"),
 }
 PYTHONS = ("3.11", "3.13")
-BUNDLED_WITH_BLENDER = frozenset({"numpy"})
+# Blender ships numpy, and decodes m4a/AAC with its own ffmpeg (`aud`, which music/audio.py falls back to): the
+# imageio-ffmpeg wheel (an ffmpeg binary: 68 MB for linux-x64, 173 MB installed; 39 MB windows-x64, 23 MB
+# macos-arm64) is left out of the zips, and not even downloaded (nothing depends on it, nor it on anything).
+BUNDLED_WITH_BLENDER = frozenset({"numpy", "imageio-ffmpeg"})
+_NOT_DOWNLOADED = ("imageio-ffmpeg",)  # as pyproject.toml spells the requirement
 _SKIP_DIRS = frozenset({"__pycache__", ".pytest_cache", ".ruff_cache"})
 _SKIP_SUFFIXES = frozenset({".pyc", ".pyo"})
 _TERMS = ("NOTICE", "LICENSE")  # what ships under which licence, beside the add-on
@@ -83,9 +87,10 @@ def pins_for(python: str) -> list[str]:
 
 
 def dependency_wheels(platform: str, python: str) -> list[Path]:
-    """The project's runtime dependencies (and theirs) as wheels for one platform and Python, numpy left out;
+    """The project's runtime dependencies (and theirs) as wheels for one platform and Python, less Blender's own;
     downloaded once into .cache/wheels/<platform>-<python>/ and reused while the pins and dependencies match."""
-    requirements, pins = project_metadata()["dependencies"], pins_for(python)
+    pins = pins_for(python)
+    requirements = [r for r in project_metadata()["dependencies"] if not r.startswith(_NOT_DOWNLOADED)]
     folder = WHEEL_CACHE / f"{platform}-py{python}"
     key = hashlib.sha256("\n".join([*requirements, *pins, *PLATFORMS[platform]]).encode()).hexdigest()[:16]
     listing = folder / f".resolved-{key}"

@@ -4,9 +4,11 @@ motion, and where the real data lives (tests that need it skip cleanly when it i
 from __future__ import annotations
 
 import os
+import subprocess
 from pathlib import Path
 
 import numpy as np
+import soundfile as sf
 
 from dancenet_core.motion import Motion
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
@@ -33,6 +35,24 @@ def click_track(bpm: float, dur: float = 12.0, offset: float = 0.5) -> tuple[np.
         burst = amp * env * (0.5 * rng.standard_normal(n) + np.sin(2 * np.pi * freq * t))
         x[s : s + n] += burst[: len(x) - s]
     return x, times
+
+
+def encoded_click_track(folder: Path, formats: tuple[str, ...], bpm: float = 120) -> tuple[Path, list[Path]]:
+    """A click track as WAV and encoded by imageio-ffmpeg's ffmpeg into each format ("m4a": AAC; "mp4": AAC
+    beside an H.264 picture), for the decoders that libsndfile lacks."""
+    import imageio_ffmpeg
+
+    wav = folder / "clicks.wav"
+    sf.write(str(wav), np.stack([click_track(bpm)[0]] * 2, axis=1), MADMOM_SAMPLE_RATE)
+    encoded = []
+    for ext in formats:
+        video = ["-f", "lavfi", "-i", "color=size=64x64:rate=10", "-shortest", "-c:v", "libx264"]
+        video = video if ext == "mp4" else []
+        out = folder / f"clicks.{ext}"
+        subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-i", str(wav), *video, "-c:a", "aac",
+                        str(out)], check=True)  # fmt: skip
+        encoded.append(out)
+    return wav, encoded
 
 
 def music(dur: float, seed: int = 0) -> np.ndarray:

@@ -2,15 +2,21 @@
 
 Decoding is done block by block with soundfile (libsndfile reads wav, flac, ogg/vorbis, opus and mp3), the
 mix-down and the polyphase resampling too, so a long song never holds more than its mono signal plus one
-block in memory.
+block in memory. What libsndfile cannot read (m4a/AAC, the audio of a video, wma...) is decoded by the ffmpeg
+that the imageio-ffmpeg wheel bundles, through a pipe and block by block too, or, inside Blender, where the
+extension leaves that wheel out, by Blender's own audio module (`aud`, built on Blender's ffmpeg).
 """
 
 from __future__ import annotations
 
+import subprocess
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from math import gcd
 from pathlib import Path
-from typing import TYPE_CHECKING
+from types import ModuleType
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 import soundfile as sf
@@ -31,6 +37,7 @@ SILENCE_PEAK = 1e-4
 # this range would take hours.
 MIN_SAMPLE_RATE, MAX_SAMPLE_RATE = 4000, 384000
 SUPPORTED_FORMATS = ("wav", "flac", "ogg", "mp3", "opus")
+FFMPEG_FORMATS = ("m4a", "aac", "mp4", "webm", "wma")  # and the rest of ffmpeg's: with imageio-ffmpeg, or in Blender
 
 _DECODE_BLOCK = 1 << 20  # frames decoded per soundfile read
 _DECODE_PREALLOCATE = 1 << 25  # at most this many frames are allocated up front (the buffer grows past it)
@@ -74,17 +81,10 @@ def load_audio(path: str | Path, sample_rate: int = MADMOM_SAMPLE_RATE) -> Audio
     try:
         with sf.SoundFile(str(path)) as f:
             source_rate, channels = int(f.samplerate), int(f.channels)
-            if not MIN_SAMPLE_RATE <= source_rate <= MAX_SAMPLE_RATE:
-                raise DanceNetError(
-                    f"{path.name} says its sample rate is {source_rate} Hz, which no song has (the file is "
-                    f"damaged?); export it again or convert it with e.g. `ffmpeg -i {path.name} song.wav`"
-                )
-            mono = _decode_mono(f)
+            _check_rate(path, source_rate)
+            mono = _mono(_soundfile_blocks(f), f.frames)
     except (sf.LibsndfileError, RuntimeError, TypeError) as e:
-        raise DanceNetError(
-            f"cannot decode {path.name} as audio ({_one_line(e)}); supported formats: "
-            f"{', '.join(SUPPORTED_FORMATS)}; convert it with e.g. `ffmpeg -i {path.name} song.wav`"
-        ) from e
+        source_rate, channels, mono = _decode_other(path, e)
     if len(mono) == 0:
         raise DanceNetError(f"audio file has no samples: {path}; export or download it again")
     bad = int(np.count_nonzero(~np.isfinite(mono)))
@@ -126,21 +126,127 @@ def resample(samples: np.ndarray, source_rate: int, target_rate: int) -> np.ndar
     return out
 
 
-def _decode_mono(f: sf.SoundFile) -> np.ndarray:
-    """Read every frame as float32 and average the channels, one block at a time."""
-    expected = min(max(int(f.frames), 0), _DECODE_PREALLOCATE)  # a damaged header can claim any count
-    out = np.empty(expected, dtype=np.float32)
+def _check_rate(path: Path, rate: int) -> None:
+    if not MIN_SAMPLE_RATE <= rate <= MAX_SAMPLE_RATE:
+        raise DanceNetError(
+            f"{path.name} says its sample rate is {rate} Hz, which no song has (the file is "
+            f"damaged?); export it again or convert it with e.g. `ffmpeg -i {path.name} song.wav`"
+        )
+
+
+def _soundfile_blocks(f: sf.SoundFile) -> Iterator[np.ndarray]:
+    """[frames, channels] float32 blocks until the end; not f.blocks(): it pads up to the header's frame
+    count, which a damaged file sets to billions."""
+    while len(block := f.read(_DECODE_BLOCK, dtype="float32", always_2d=True)):
+        yield block
+
+
+def _mono(blocks: Iterable[np.ndarray], frames: int) -> np.ndarray:
+    """The blocks' channels averaged into one float32 signal; `frames` (a header's claim) sizes the buffer."""
+    out = np.empty(min(max(int(frames), 0), _DECODE_PREALLOCATE), dtype=np.float32)
     n = 0
-    while True:  # not f.blocks(): it pads up to the header's frame count, which a damaged file sets to billions
-        block = f.read(_DECODE_BLOCK, dtype="float32", always_2d=True)
-        if not len(block):
-            break
+    for block in blocks:
         mono = block.mean(axis=1, dtype=np.float32) if block.shape[1] > 1 else block[:, 0]
         if n + len(mono) > len(out):  # frame counts of compressed formats can be estimates
             out = np.concatenate([out[:n], np.empty(max(len(mono), len(out) // 4), np.float32)])
         out[n : n + len(mono)] = mono
         n += len(mono)
     return out[:n]
+
+
+def _decode_other(path: Path, soundfile_error: Exception) -> tuple[int, int, np.ndarray]:
+    """(rate, channels, mono) of a file libsndfile cannot read; a DanceNetError naming the decoder's complaint
+    when no decoder can."""
+    decode = _other_decoder()
+    if decode is None:
+        raise DanceNetError(
+            f"cannot decode {path.name} as audio ({_one_line(soundfile_error)}); supported formats: "
+            f"{', '.join(SUPPORTED_FORMATS)}, and {', '.join(FFMPEG_FORMATS)} with imageio-ffmpeg "
+            f"(`pip install imageio-ffmpeg`); or convert it with e.g. `ffmpeg -i {path.name} song.wav`"
+        )
+    try:
+        return decode(path)
+    except DanceNetError:
+        raise
+    except Exception as e:  # ffmpeg's own complaint, imageio-ffmpeg without its binary, aud.error
+        raise DanceNetError(
+            f"cannot decode {path.name} as audio ({_one_line(e)}); supported formats: "
+            f"{', '.join(SUPPORTED_FORMATS + FFMPEG_FORMATS)}; convert it with e.g. `ffmpeg -i {path.name} song.wav`"
+        ) from e
+
+
+def _other_decoder() -> Callable[[Path], tuple[int, int, np.ndarray]] | None:
+    """imageio-ffmpeg's bundled ffmpeg where it is installed (it never downloads one), else Blender's `aud`
+    (importable only inside Blender or after `import bpy`): the extension leaves the 23-68 MB wheel out."""
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        pass
+    else:
+        return lambda path: _decode_ffmpeg(path, imageio_ffmpeg.get_ffmpeg_exe())
+    try:
+        import aud
+    except ImportError:
+        return None
+    return lambda path: _decode_aud(path, aud)
+
+
+def _decode_ffmpeg(path: Path, ffmpeg: str) -> tuple[int, int, np.ndarray]:
+    """The first audio stream as 32-bit float WAV on a pipe, read block by block; ffmpeg's messages go to a
+    file, not a pipe that could fill up and stall it."""
+    command = [ffmpeg, "-nostdin", "-v", "error", "-i", str(path), "-map", "0:a:0", "-c:a", "pcm_f32le",
+               "-f", "wav", "-map_metadata", "-1", "-fflags", "+bitexact", "pipe:1"]  # fmt: skip
+    with tempfile.TemporaryFile() as log, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log) as proc:
+        try:
+            rate, channels = _wav_header(proc.stdout)
+            if rate is not None:
+                _check_rate(path, rate)
+            mono = np.empty(0, np.float32) if rate is None else _mono(_pipe_blocks(proc.stdout, channels), 0)
+        except BaseException:  # a bad rate, Ctrl-C: ffmpeg would go on decoding into a pipe nobody reads
+            proc.kill()
+            raise
+        finally:
+            proc.stdout.close()
+        if proc.wait():
+            log.seek(0)
+            lines = log.read().decode(errors="replace").strip().splitlines() or [f"exit status {proc.returncode}"]
+            raise RuntimeError(f"ffmpeg: {lines[-1].strip()}")
+    return rate or 0, channels, mono
+
+
+def _wav_header(pipe: IO[bytes]) -> tuple[int | None, int]:
+    """(rate, channels) from a streamed WAV's chunks up to `data`; (None, 0) when nothing came."""
+    riff = pipe.read(12)
+    if len(riff) < 12:
+        return None, 0
+    rate, channels = None, 0
+    while len(head := pipe.read(8)) == 8:
+        size = int.from_bytes(head[4:], "little")
+        if head[:4] == b"data":
+            break
+        body = pipe.read(size + size % 2)
+        if head[:4] == b"fmt ":
+            channels, rate = int.from_bytes(body[2:4], "little"), int.from_bytes(body[4:8], "little")
+    return (rate, channels) if channels else (None, 0)
+
+
+def _pipe_blocks(pipe: IO[bytes], channels: int) -> Iterator[np.ndarray]:
+    frame = 4 * channels
+    rest = b""
+    while chunk := pipe.read(_DECODE_BLOCK * frame):
+        chunk = rest + chunk
+        whole = len(chunk) // frame * frame
+        rest = chunk[whole:]
+        yield np.frombuffer(chunk[:whole], dtype="<f4").reshape(-1, channels)
+
+
+def _decode_aud(path: Path, aud: ModuleType) -> tuple[int, int, np.ndarray]:
+    """Blender's decoder, for the extension (no ffmpeg wheel): it decodes the whole file at once."""
+    sound = aud.Sound(str(path))
+    rate, channels = (int(v) for v in sound.specs)
+    _check_rate(path, rate)
+    data = np.asarray(sound.data(), dtype=np.float32)
+    return rate, channels, _mono([data.reshape(len(data), -1)], len(data))
 
 
 def _one_line(e: Exception) -> str:

@@ -5,16 +5,19 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import soundfile as sf
+from made_up import encoded_click_track
 from scipy.signal import chirp, resample_poly
 
 from dancenet_core.errors import DanceNetError
 from dancenet_core.music import audio
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE, MIN_DURATION_S, load_audio, resample
+from dancenet_core.music.features import analyze_music
 
 DUR = 4.0
 
@@ -161,3 +164,33 @@ def test_header_without_samples(tmp_path: Path) -> None:
     path = tmp_path / "header_only.wav"
     sf.write(str(path), np.zeros((0, 1), np.float32), 44100)
     _check_error(path, "no samples")
+
+
+@pytest.mark.parametrize("ext", ["m4a", "mp4"])
+def test_m4a_and_mp4_analyse_to_the_wav_beats(tmp_path: Path, ext: str) -> None:
+    """AAC (an m4a, the audio track of an mp4), which libsndfile cannot read, is decoded by imageio-ffmpeg's
+    ffmpeg into the signal the WAV gives: same length, aligned (no encoder delay left), the same beats."""
+    wav, (song,) = encoded_click_track(tmp_path, (ext,))
+    got, expected = load_audio(song), load_audio(wav)
+    assert (got.source_sample_rate, got.source_channels) == (44100, 2)
+    assert abs(len(got.samples) - len(expected.samples)) <= 1
+    assert rel_rms(got.samples, expected.samples) < 0.5  # AAC blurs the clicks' noise; 1024 samples late: 1.4
+    beats, truth = (analyze_music(p, use_cache=False, workers=1).beat_times for p in (song, wav))
+    assert len(beats) == len(truth)
+    np.testing.assert_allclose(beats, truth, atol=0.02)
+
+
+@pytest.mark.parametrize("cut", ["truncated", "garbled"])
+def test_a_broken_m4a_is_one_line(tmp_path: Path, cut: str) -> None:
+    _, (song,) = encoded_click_track(tmp_path, ("m4a",))
+    data = song.read_bytes()
+    song.write_bytes(data[: len(data) // 3] if cut == "truncated" else data[:64] + bytes(len(data) - 64))
+    _check_error(song, "cannot decode clicks.m4a", "ffmpeg")
+
+
+def test_without_ffmpeg_nor_blender_an_m4a_says_what_to_install(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    _, (song,) = encoded_click_track(tmp_path, ("m4a",))
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import fails as if it were not installed
+    monkeypatch.setitem(sys.modules, "aud", None)
+    _check_error(song, "cannot decode clicks.m4a", "pip install imageio-ffmpeg")
