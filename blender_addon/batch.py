@@ -12,12 +12,15 @@ for. One summary line per song; the exit status is 1 if any song failed, after t
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
+import io
+import os
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -97,17 +100,18 @@ def run_song(
     out.mkdir(parents=True, exist_ok=True)
     rig = bpy.data.objects[applied.rig]
     written = []
-    if args.bvh:
-        written.append(addon.export.export_bvh(context, rig, out / f"{out.name}.bvh"))
-    if args.fbx:
-        written.append(addon.export.export_fbx(context, rig, out / f"{out.name}.fbx"))
-    if args.render:
-        addon.render.setup_preview(scene, rig, out / f"{out.name}.mp4", args.resolution)
-    blend = out / f"{out.name}.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend))  # Blender writes `name.blend@` and renames it into place
-    written.insert(0, blend)
-    if args.render:
-        written.append(addon.render.render_preview(scene))
+    with _quiet():
+        if args.bvh:
+            written.append(addon.export.export_bvh(context, rig, out / f"{out.name}.bvh"))
+        if args.fbx:
+            written.append(addon.export.export_fbx(context, rig, out / f"{out.name}.fbx"))
+        if args.render:
+            addon.render.setup_preview(scene, rig, out / f"{out.name}.mp4", args.resolution)
+        blend = out / f"{out.name}.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend))  # Blender writes `name.blend@` and renames it into place
+        written.insert(0, blend)
+        if args.render:
+            written.append(addon.render.render_preview(scene))
     seconds = (applied.frame_end - applied.frame_start + 1) / scene.render.fps
     takes = f"{len(applied.actions)} takes" if len(applied.actions) > 1 else "1 take"
     files = ", ".join(p.name for p in written)
@@ -115,6 +119,22 @@ def run_song(
         f"OK      {song.name}: {applied.style}, {seconds:.1f} s, {takes}, {result.tempo_bpm:.0f} BPM -> "
         f"{out} ({files}) in {time.perf_counter() - started:.1f} s"
     )
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """Blender's exporters and renderer report the temporary names they write to (atomic.atomic_path) on
+    stdout, from Python and from C: that chatter goes nowhere, so batch mode's output is its summary lines.
+    Errors still arrive as exceptions and on stderr."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as devnull, contextlib.redirect_stdout(io.StringIO()):
+            os.dup2(devnull.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def main(argv: list[str] | None = None, generator: Callable[..., Any] | None = None) -> int:

@@ -136,6 +136,8 @@ def check_song(path: str | Path) -> Path:
     if not str(path).strip():
         raise DanceNetError("No audio file chosen: pick a song file in the DanceNet panel")
     p = Path(bpy.path.abspath(str(path))).expanduser()
+    if p.is_dir():
+        raise DanceNetError(f"{p} is a folder, not an audio file: give the path of a song file")
     if not p.is_file():
         raise DanceNetError(f"Audio file not found: {p}")
     if p.suffix.lower() not in _AUDIO_SUFFIXES:
