@@ -122,11 +122,13 @@ def _check_render_extra() -> None:
     missing = [m for m in ("pyrender", "trimesh", "PIL", "OpenGL") if importlib.util.find_spec(m) is None]
     if missing:
         raise DanceNetError(f"the preview needs the render extra ({', '.join(missing)} missing): "
-                            'pip install "dancenet[render]" "PyOpenGL>=3.1.10" (from a checkout: ".[render]")')
+                            'pip install "dancenet[render]" (from a checkout: ".[render]"), then, as a second '
+                            'command, pip install "PyOpenGL==3.1.10" (pyrender pins 3.1.0)')
     version = importlib.metadata.version("PyOpenGL")
     if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
         raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview; "
-                            'install a newer one beside it: pip install "PyOpenGL>=3.1.10"')
+                            'install a newer one beside it: pip install "PyOpenGL==3.1.10" (pip warns about '
+                            "pyrender's pin; the preview needs the newer one)")
 
 
 def _probe(platform: str) -> str | None:

@@ -35,4 +35,4 @@ def test_pyrenders_pinned_pyopengl_is_named_with_the_fix(monkeypatch: pytest.Mon
     monkeypatch.setattr(importlib.metadata, "version", lambda name: "3.1.0" if name == "PyOpenGL" else version(name))
     with pytest.raises(DanceNetError) as e:
         render.gl_platform()
-    assert 'PyOpenGL 3.1.0' in str(e.value) and 'pip install "PyOpenGL>=3.1.10"' in str(e.value)
+    assert 'PyOpenGL 3.1.0' in str(e.value) and 'pip install "PyOpenGL==3.1.10"' in str(e.value)
