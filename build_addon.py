@@ -49,8 +49,8 @@ _SKIP_DIRS = frozenset({"__pycache__", ".pytest_cache", ".ruff_cache"})
 _SKIP_SUFFIXES = frozenset({".pyc", ".pyo"})
 _TERMS = ("NOTICE", "LICENSE")  # what ships under which licence, beside the add-on
 _TRAINING_ONLY = re.compile(r"^dancenet_core/weights/[^/]+\.pt$")  # checkpoints: torch, never read by generation
-# How `pip download` names each file of the resolution, new or found in the folder.
-_DOWNLOADED = re.compile(r"^(?:Saved|File was already downloaded) (.+\.whl)$", re.MULTILINE)
+# How `pip download` names each file of the resolution, new or found in the folder (indented by newer pips).
+_DOWNLOADED = re.compile(r"^\s*(?:Saved|File was already downloaded) (.+\.whl)$", re.MULTILINE)
 _MARKER = re.compile(r'^python_version\s*(<|<=|>|>=|==)\s*"(\d+)\.(\d+)"$')
 
 
