@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import re
 import sys
+import unicodedata
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +26,8 @@ from .shapemap import BODY_JOINTS, RestBone, match_shape
 MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
     "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
-    "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "GENERIC": "generic.json",
+    "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "MMD": "mmd.json",
+    "GENERIC": "generic.json",
 }  # fmt: skip
 
 
@@ -38,10 +40,13 @@ class BoneMap:
 
 def name_key(name: str) -> tuple[str, str]:
     """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
-    case and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh")."""
-    local = name.rsplit(":", 1)[-1]
+    case, width and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh"), and
+    MMD's 左足ＩＫ, 足IK.L (MMD Tools' side suffixes) give ("l", "足ik")."""
+    local = unicodedata.normalize("NFKC", name.rsplit(":", 1)[-1])
     side, rest = "", local
-    if m := re.match(r"(?i)^(left|right)(.+)$", local):
+    if m := re.match(r"^([左右])(.+)$", local):
+        side, rest = "l" if m[1] == "左" else "r", m[2]
+    elif m := re.match(r"(?i)^(left|right)(.+)$", local):
         side, rest = m[1], m[2]
     elif m := re.match(r"(?i)^(.+?)(left|right)$", local):
         side, rest = m[2], m[1]
@@ -49,7 +54,7 @@ def name_key(name: str) -> tuple[str, str]:
         side, rest = m[1], local[: m.start()] + " " + local[m.end() :]
     elif m := re.match(r"^([lr])([A-Z].*)$", local):
         side, rest = m[1], m[2]
-    return side[:1].lower(), re.sub(r"[^a-z0-9]", "", rest.lower())
+    return side[:1].lower(), re.sub(r"[\W_]", "", rest.lower())
 
 
 def parse(text: str, source: str) -> BoneMap:
@@ -193,10 +198,18 @@ def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) 
     return best[1]
 
 
-def auto(bones: Sequence[RestBone], armature: str, saved: Path | None = None) -> BoneMap:
-    """For Auto: the name map that fits best (`detect`, else `closest`), with the body joints its names leave
-    out found by the skeleton's shape, so a rig whose bone names follow no rule still gets a full map."""
+def auto(bones: Sequence[RestBone], armature: str, saved: Path | None = None, own: BoneMap | None = None) -> BoneMap:
+    """For Auto: the map the rig carries (`own`: the VRM add-on's assignments) if it fits, since the user (or the
+    importer) said which bone is which; else the name map that fits best (`detect`, else `closest`), with the
+    body joints its names leave out found by the skeleton's shape, so a rig whose bone names follow no rule
+    still gets a full map."""
     names = [b.name for b in bones]
+    if own is not None:
+        try:
+            resolve(own, names, armature)
+            return own
+        except DanceNetError:
+            pass
     try:
         base = detect(names, armature, saved)
     except DanceNetError:

@@ -112,6 +112,18 @@ def _mapped_chain_child(skeleton: Skeleton, j: int, mapped: dict[int, str]) -> i
     return child
 
 
+def _travel_bone(rig: bpy.types.Object, bone_map: dict[str, str]) -> str:
+    """The bone keyed with the body's travel: the hips bone, or, where the spine does not hang below it (MMD's
+    上半身 and 下半身 both hang from センター), the nearest bone above both, so the whole body moves."""
+    bones = rig.data.bones
+    spine = next(bone_map[j] for j in rigdef.SPINE_JOINTS if j in bone_map)
+    above_spine = {b.name for b in bones[spine].parent_recursive}
+    if bone_map["pelvis"] in above_spine:
+        return bone_map["pelvis"]
+    return next((b.name for b in bones[bone_map["pelvis"]].parent_recursive if b.name in above_spine),
+                bone_map["pelvis"])
+
+
 def root_bone_of(rig: bpy.types.Object, hips: str) -> str | None:
     """The bone at the top of the hips bone's chain (a root bone for engines' root motion), if any."""
     parents = rig.data.bones[hips].parent_recursive
@@ -163,10 +175,12 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     delta: dict[int, np.ndarray] = {}
     spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig has no bone for
     for j, bone in mapped.items():
-        child = _mapped_chain_child(skeleton, j, mapped)
-        if child is not None and np.linalg.norm(theirs[child] - theirs[j]) > 1e-6:
+        first = child = _mapped_chain_child(skeleton, j, mapped)
+        while child is not None and np.linalg.norm(theirs[child] - theirs[j]) <= 1e-6:
+            child = _mapped_chain_child(skeleton, child, mapped)  # one starting at j (MMD's upper body) shows no way
+        if child is not None:
             v_theirs, v_ours = theirs[child] - theirs[j], ours[child] - ours[j]
-            if child != rigdef.direction_child(skeleton, j):
+            if child == first != rigdef.direction_child(skeleton, j):
                 spans[j] = child
         else:
             v_theirs, v_ours = rest[bone][:3, 1], ours_axis[j]
@@ -200,6 +214,7 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
         while b is not None and b.name not in needed:
             needed.add(b.name)
             b = b.parent
+    travel = _travel_bone(rig, bone_map)
     posed: dict[str, np.ndarray] = {}  # bone -> world matrices [T or 1, 4, 4]
     rotations: dict[str, np.ndarray] = {}
     root_locations = np.zeros((motion.num_frames, 3))
@@ -210,6 +225,12 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
         else:
             identity_pose = posed[parent.name] @ (np.linalg.inv(rest[parent.name]) @ rest[name])
         j = joint_of.get(name)
+        if name == travel != mapped[0]:  # above the hips and the spine: it carries the body to where the hips go
+            offset = root_target - theirs[0]
+            posed[name] = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()
+            posed[name][:, :3, 3] += offset
+            root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
+            continue
         if j is None:
             posed[name] = identity_pose
             continue
@@ -234,12 +255,12 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
         rotations[name] = _continuous_quaternions(basis)
         m = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()
         m[:, :3, :3] = target * scale_xyz
-        if j == 0:
+        if j == 0 and name == travel:
             offset = root_target - identity_pose[:, :3, 3]
             root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
             m[:, :3, 3] = root_target
         posed[name] = m
-    tracks = PoseTracks(rotations, mapped[0], root_locations)
+    tracks = PoseTracks(rotations, travel, root_locations)
     if floor is not None:
         root, points, yaw = floor
         a = scale * qc

@@ -22,6 +22,7 @@ from dancenet_core.errors import DanceNetError
 
 from . import bonemap, rig, rollback
 from .shapemap import RestBone
+from .vrmhumanoid import humanoid_map
 
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
 
@@ -171,7 +172,7 @@ def resolve_map(
     rig_obj: bpy.types.Object, bone_map: bonemap.BoneMap | None
 ) -> tuple[dict[str, str], list[str]]:
     """(joint -> bone, skipped optional joints) for an armature; DanceNetError if the map does not fit."""
-    chosen = bone_map or bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir())
+    chosen = bone_map or bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(), humanoid_map(rig_obj.data))
     return bonemap.resolve(chosen, [b.name for b in rig_obj.data.bones], rig_obj.name)
 
 
@@ -208,7 +209,7 @@ def current_map(props: Any) -> bonemap.BoneMap:
     rig_obj = props.armature
     if rig_obj is None or rig_obj.type != "ARMATURE":
         return bonemap.load_shipped("SMPLX")
-    return bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir())
+    return bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(), humanoid_map(rig_obj.data))
 
 
 def prepare(scene: bpy.types.Scene) -> Plan:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from doubles import convention_rest, synthetic_motion
-from scene_helpers import bpy, build_armature
+from scene_helpers import bpy, build_armature, fcurves_of
 from test_addon_animator import CONVENTIONS, landing_error
 
 from dancenet_core.skeleton import DEFAULT_SKELETON
@@ -91,3 +91,134 @@ def test_a_missing_spine_bones_turn_is_spread_over_the_bones_present(scene, addo
         ours = fk[f, chest] - fk[f, low]
         cos = theirs @ ours / np.linalg.norm(theirs) / np.linalg.norm(ours)
         assert np.degrees(np.arccos(min(cos, 1.0))) < 0.5, f
+
+
+def vrm_addon_stand_in():
+    """Property groups laid out as the VRM add-on's (saturday06/VRM-Addon-for-Blender) on Armature data:
+    vrm_addon_extension.vrm1.humanoid.human_bones.<bone>.node.bone_name (VRM 1.0) and
+    vrm_addon_extension.vrm0.humanoid.human_bones[i].bone / .node.bone_name (VRM 0.x); returns the classes."""
+    from blender_addon.vrmhumanoid import _BODY, _FINGERS, _LIMBS, _SEGMENTS
+
+    props = bpy.props
+
+    def group(name: str, **fields):
+        return type(f"StandInVrm{name}", (bpy.types.PropertyGroup,), {"__annotations__": fields})
+
+    node = group("Node", bone_name=props.StringProperty())
+    bone = group("1Bone", node=props.PointerProperty(type=node))
+    names = [*_BODY, *(f"{s}_{p}" for s in ("left", "right") for p in (
+        *_LIMBS, *(f"{f}_{g}" for f in ("thumb", *_FINGERS) for g in ("metacarpal", *_SEGMENTS))))]
+    bones1 = group("1Bones", **{n: props.PointerProperty(type=bone) for n in names})
+    humanoid1 = group("1Humanoid", human_bones=props.PointerProperty(type=bones1))
+    vrm1 = group("1", humanoid=props.PointerProperty(type=humanoid1))
+    bone0 = group("0Bone", bone=props.StringProperty(), node=props.PointerProperty(type=node))
+    humanoid0 = group("0Humanoid", human_bones=props.CollectionProperty(type=bone0))
+    vrm0 = group("0", humanoid=props.PointerProperty(type=humanoid0))
+    ext = group("Extension", vrm0=props.PointerProperty(type=vrm0), vrm1=props.PointerProperty(type=vrm1))
+    return [node, bone, bones1, humanoid1, vrm1, bone0, humanoid0, vrm0, ext]
+
+
+@pytest.fixture
+def vrm_addon():
+    classes = vrm_addon_stand_in()
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Armature.vrm_addon_extension = bpy.props.PointerProperty(type=classes[-1])
+    yield
+    del bpy.types.Armature.vrm_addon_extension
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
+
+
+# Our joint -> the human bone the VRM add-on assigns it as, in VRM 1.0 and 0.x.
+VRM_BONES = {"pelvis": ("hips", "hips"), "spine1": ("spine", "spine"), "spine2": ("chest", "chest"),
+             "neck": ("neck", "neck"), "head": ("head", "head")}  # fmt: skip
+for _s in ("left", "right"):
+    for _joint, _v1, _v0 in (("collar", "shoulder", "Shoulder"), ("shoulder", "upper_arm", "UpperArm"),
+                             ("elbow", "lower_arm", "LowerArm"), ("wrist", "hand", "Hand"),
+                             ("hip", "upper_leg", "UpperLeg"), ("knee", "lower_leg", "LowerLeg"),
+                             ("ankle", "foot", "Foot"), ("foot", "toes", "Toes")):
+        VRM_BONES[f"{_s}_{_joint}"] = (f"{_s}_{_v1}", f"{_s}{_v0}")
+
+
+@pytest.mark.parametrize("version", ["1.0", "0.x"])
+def test_a_rig_assigned_by_the_vrm_addon_dances_as_assigned(scene, addon, song, vrm_addon, version):
+    """Bones named so no shipped map fits (Bone.017 ...), assigned in the VRM add-on: Auto maps them as assigned."""
+    smplx = addon.bonemap.load_shipped("SMPLX")
+    names = {j: f"Bone.{i:03d}" for i, j in enumerate(smplx.bones)}
+    rows = convention_rest(smplx.bones, scale=0.92, a_pose_deg=30.0, arm_scale=1.04, leg_scale=0.97, names=names)
+    rig = build_armature(f"VRM {version} rig", rows, mixamo_import=False)
+    humanoid = getattr(rig.data.vrm_addon_extension, "vrm1" if version == "1.0" else "vrm0").humanoid
+    for joint, (v1, v0) in VRM_BONES.items():
+        if version == "1.0":
+            getattr(humanoid.human_bones, v1).node.bone_name = names[joint]
+        else:
+            item = humanoid.human_bones.add()
+            item.bone, item.node.bone_name = v0, names[joint]
+    mapping = dance_under_auto(scene, song, rig)
+    assert mapping == {j: names[j] for j in VRM_BONES}
+    error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
+    print(f"VRM {version}: worst landing error {error:.4f} of the height")
+    assert error < 0.05
+
+
+def mmd_rows(english: bool) -> tuple[list, dict[str, str]]:
+    """An MMD model's skeleton as MMD Tools imports it: two spine bones; 上半身 and 下半身 both start at the
+    waist and hang from グルーブ < センター < 全ての親 (センター below the hips); 下半身 points down to the
+    hips; the right side named as MMD Tools renames sides (ひじ.R), full-width digits; the legs' IK bones
+    under 全ての親. `english`: MMD Tools' English names (LeftArm, Arm_R, LeftLegIK). Returns rows, joint -> bone."""
+    mmd = bpy_free_map("MMD")
+    names = {}
+    for joint, (ja, en) in mmd.items():
+        name = en if english else ja
+        if joint.startswith("right_"):
+            name = name.removeprefix("Right") + "_R" if english else name.removeprefix("右") + ".R"
+        names[joint] = name if english else name.translate(str.maketrans("0123", "０１２３"))
+    rows = without(convention_rest({j: [n] for j, n in names.items()}, scale=0.92, a_pose_deg=35.0, arm_scale=1.04,
+                                   leg_scale=0.97, names=names), names.pop("spine3"))  # two spine bones
+    at = {b: (h, t) for b, _p, h, t in rows}
+    lower, upper, waist = names["pelvis"], names["spine1"], at[names["pelvis"]][0]
+    hips = (at[names["left_hip"]][0] + at[names["right_hip"]][0]) / 2
+    top, center, groove = ("ParentNode", "Center", "Groove") if english else ("全ての親", "センター", "グルーブ")
+    rows = [(b, groove, waist, t) if b == upper else (b, p, h, t) for b, p, h, t in rows if b != lower]
+    rows += [(top, None, np.zeros(3), np.array([0.0, 0.0, 0.1])),
+             (center, top, hips - [0, 0, 0.15], hips - [0, 0, 0.2]), (groove, center, hips - [0, 0, 0.13], hips),
+             (lower, groove, waist, hips)]
+    for side, s in (("left", "Left" if english else "左"), ("right", "Right" if english else "右")):
+        ankle, tip = at[names[f"{side}_ankle"]][0], at[names[f"{side}_foot"]][1]
+        leg_ik = f"{s}LegIK" if english else f"{s}足ＩＫ"
+        toe_ik = f"{s}ToeTipIK" if english else f"{s}つま先ＩＫ"
+        rows += [(leg_ik, top, ankle, ankle + [0, 0.1, 0]), (toe_ik, leg_ik, tip, tip - [0, 0, 0.05])]
+    return rows, names
+
+
+def bpy_free_map(key: str) -> dict[str, list[str]]:
+    from blender_addon import bonemap
+
+    return bonemap.load_shipped(key).bones
+
+
+@pytest.mark.parametrize("english", [False, True], ids=["japanese", "english"])
+def test_an_mmd_rig_dances_under_auto_with_its_leg_ik_muted(scene, addon, song, english):
+    rows, names = mmd_rows(english)
+    rig = build_armature("MMD model", rows, mixamo_import=False)
+    for side, s in (("left", "Left" if english else "左"), ("right", "Right" if english else "右")):
+        for bone, target, chain in ((names[f"{side}_knee"], f"{s}LegIK" if english else f"{s}足ＩＫ", 2),
+                                    (names[f"{side}_ankle"], f"{s}ToeTipIK" if english else f"{s}つま先ＩＫ", 1)):
+            ik = rig.pose.bones[bone].constraints.new("IK")
+            ik.target, ik.subtarget, ik.chain_count = rig, target, chain
+    mapping = dance_under_auto(scene, song, rig)
+    assert mapping == {j: n for j, n in names.items() if j in mapping} and len(mapping) >= 45
+    assert mapping["pelvis"] == ("LowerBody" if english else "下半身")
+    center = "Groove" if english else "グルーブ"  # the bone above both halves of the body carries the travel
+    paths = {fc.data_path for fc in fcurves_of(rig.animation_data.action)}
+    assert f'pose.bones["{center}"].location' in paths
+    assert f'pose.bones["{mapping["pelvis"]}"].location' not in paths
+    iks = [c for b in rig.pose.bones for c in b.constraints if c.type == "IK"]
+    assert len(iks) == 4 and all(c.mute for c in iks)  # off so the keys show; unmuting them hands the legs back
+    motion = synthetic_motion(2.0, seed=0)
+    error = landing_error(rig, {j: b for j, b in mapping.items() if j != "head"}, motion, scene.frame_start)
+    head = landing_error(rig, {j: mapping[j] for j in ("pelvis", "head")}, motion, scene.frame_start)
+    print(f"MMD ({'English' if english else 'Japanese'} names): feet and hands land within {error:.4f} of the "
+          f"height, the head {head:.4f} (the rig's spine starts at its hips: no bone for our pelvis-spine1 step)")
+    assert error < 0.05
