@@ -211,12 +211,14 @@ def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequen
         "## Limits",
         "",
         f"Held-out songs of the styles other than {common}: ours gets {minority(c)}, the baseline "
-        f"{minority(b)}. Ballroom styles differ mostly in tempo and metre, which the beat and downbeat "
-        f"channels carry, but the models have learnt from {few} songs per style apart from {common} and "
-        "fit their training songs far better than new ones: treat the style as a suggestion that the user "
-        "can override. The models know only the styles listed above. Rumba and cha-cha are both 4 beats a bar "
-        "and told apart mostly by tempo: a rumba whose beat is tracked at cha-cha tempo (as that of the test "
-        "rumba here, 130 bpm; two training rumbas are tracked at 120 and 188 bpm) is taken for a cha-cha.",
+        f"{minority(b)}. Ballroom styles differ mostly in tempo and metre, which the input spells out, but the "
+        f"models have learnt from {few} songs per style apart from {common} and fit their training songs far "
+        "better than new ones: treat the style as a suggestion that the user can override. The models know "
+        "only the styles listed above. Beats per bar set waltz (3) apart; cha-cha, rumba and tango are all 4 "
+        "beats a bar and told apart mostly by tempo, where the tracker's tempo of a rumba is anywhere from 70 "
+        "to 190 bpm (it often counts the beat at 1.5 or 2 times its speed): a rumba tracked at tango's tempo "
+        "(as the test rumba here, 130 bpm; the tangos are at 125-128 bpm) is taken for a tango, and so are "
+        "many windows of a cha-cha at the top of its range (125 bpm).",
         "",
     ]
     return "\n".join(out)
