@@ -86,7 +86,9 @@ def run_song(
     started = time.perf_counter()
     song = pipeline.check_song(song)
     generator = generator or pipeline.load_generator()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    # An empty factory scene, the preferences kept: read_factory_settings resets them too, which disables the
+    # installed extensions, and Blender then deletes their wheels (an installed DanceNet's core among them).
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     context = bpy.context
     scene = context.scene
     request = pipeline.GenerationRequest(
