@@ -4,6 +4,7 @@ motion, and where the real data lives (tests that need it skip cleanly when it i
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -97,3 +98,9 @@ def peak_frames(column: np.ndarray) -> np.ndarray:
 
 def peaks(column: np.ndarray) -> int:
     return len(peak_frames(column))
+
+
+def hangup_as_a_terminal_sends_it() -> None:
+    """In a test's child process: SIGHUP back to its default action. A suite started under `nohup` ignores
+    SIGHUP and its children would inherit that, so a test of what a hang-up does would see nothing happen."""
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)

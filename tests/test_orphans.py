@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from made_up import small_motion
+from made_up import hangup_as_a_terminal_sends_it, small_motion
 from test_safety import _alive, _children
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,7 +27,8 @@ def test_killed_render_leaves_no_worker_nor_ffmpeg(tmp_path: Path, sig: signal.S
     with (tmp_path / "stderr").open("w") as log:  # a file, not a pipe: a helper left behind would hold a pipe open
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "render", str(motion), "-o",
                                   str(tmp_path / "long.mp4"), "--width", "64", "--height", "48"],
-                                 cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True)
+                                 cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True,
+                                 preexec_fn=hangup_as_a_terminal_sends_it)
     deadline = time.monotonic() + 180
     helpers: set[int] = set()
     while len(helpers) < 3:  # two render workers and ffmpeg

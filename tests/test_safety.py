@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 import torch
-from made_up import small_motion
+from made_up import hangup_as_a_terminal_sends_it, small_motion
 
 from dancenet_core import generate
 from dancenet_core.bvh import write_bvh
@@ -332,7 +332,8 @@ def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: sig
     env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
     with (tmp_path / "stderr").open("w") as log:  # a file, not a pipe: a worker left behind would hold a pipe open
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "analyze", str(song), "--no-cache"],
-                                 cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True)
+                                 cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True,
+                                 preexec_fn=hangup_as_a_terminal_sends_it)
     deadline = time.monotonic() + 120
     workers: set[int] = set()
     while len(workers) < 2:

@@ -610,15 +610,19 @@ def test_auto_goes_by_names_first_and_by_shape_for_what_they_leave_out(addon):
 
 
 # (names, how the rig is laid out): SMPL-X's full skeleton (fingers, jaw, eyes) with meaningless names in a T-pose;
-# Japanese names, an A-pose, twist and root bones, stored Y-up in centimetres and turned by the object.
+# Korean names (no shipped map knows them; MMD's Japanese ones are a map now), an A-pose, twist and root bones,
+# stored Y-up in centimetres and turned by the object.
 _SHAPE_ONLY = {
     "bone_001 T-pose": ({}, {}),
-    "日本語 A-pose": ({"pelvis": "腰", "spine1": "背骨", "spine2": "胸", "spine3": "上胸", "neck": "首", "head": "頭"}
-                     | {f"{side}_{j}": f"{s}{part}" for side, s in (("left", "左"), ("right", "右"))
-                        for j, part in (("collar", "肩"), ("shoulder", "腕"), ("elbow", "ひじ"), ("wrist", "手首"),
-                                        ("hip", "足"), ("knee", "ひざ"), ("ankle", "足首"), ("foot", "つま先"))},
-                     {"a_pose_deg": 40.0, "root": "全ての親", "splits": {
-                         "left_shoulder": "左腕捩", "right_elbow": "右手捩", "left_hip": "左足捩", "spine1": "背骨2"}}),
+    "한국어 A-pose": ({"pelvis": "골반", "spine1": "척추", "spine2": "가슴", "spine3": "윗가슴", "neck": "목",
+                      "head": "머리"}
+                     | {f"{side}_{j}": f"{s}{part}" for side, s in (("left", "왼"), ("right", "오른"))
+                        for j, part in (("collar", "쇄골"), ("shoulder", "위팔"), ("elbow", "팔꿈치"),
+                                        ("wrist", "손목"), ("hip", "허벅지"), ("knee", "무릎"), ("ankle", "발목"),
+                                        ("foot", "발가락"))},
+                     {"a_pose_deg": 40.0, "root": "최상위", "splits": {
+                         "left_shoulder": "왼위팔비틀림", "right_elbow": "오른손비틀림", "left_hip": "왼다리비틀림",
+                         "spine1": "척추2"}}),
 }  # fmt: skip
 
 
