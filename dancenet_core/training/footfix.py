@@ -201,6 +201,7 @@ def dancenet_dances(bundle: DanceNetBundle, pairs: list, seeds: int, temperature
 
 def train_footfix(args: FootfixSettings) -> dict:
     """Train the Foot Constraint Model and the LSTM baseline on the training split; write weights + info."""
+    args.out.parent.mkdir(parents=True, exist_ok=True)  # now, not after the training (a lost run otherwise)
     pairs = build_dataset(args.data or default_data_dir())
     split = load_split()
     layout = FeatureLayout(55, 5)
