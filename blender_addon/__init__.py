@@ -7,7 +7,6 @@ as wheels, which Blender installs with the extension) and as a legacy add-on mod
 """
 
 import os
-import threading
 
 import bpy
 
@@ -22,7 +21,7 @@ def _use_extension_cache() -> None:
 
 _use_extension_cache()
 
-from . import menus, operators, panels, properties  # noqa: E402
+from . import menus, operators, panels, properties, warming  # noqa: E402
 
 bl_info = {  # read by Blender only when installed as a legacy add-on
     "name": "DanceNet",
@@ -35,34 +34,16 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
 }
 
 _CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
-_warm_up_stop = threading.Event()  # this registration's; unregister sets it, register makes a new one
-
-
-def _warm_up(stop: threading.Event) -> None:
-    """The first Generate Dance's imports and numba compiles, done now rather than on the first click (17-30 s
-    from cold, issue 27). It never touches bpy, so disabling the add-on meanwhile only stops it early. Not a
-    daemon thread: one frozen mid-import or mid-compile when Python shuts down can hang the shutdown, so Python
-    waits for it instead; Blender disables its add-ons when it quits, so that wait is one step at most."""
-    try:
-        from dancenet_core.warmup import warm_up
-
-        warm_up(stop.is_set)
-    except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
-        print(f"DanceNet: warm-up stopped: {e}")
-
-
 def register() -> None:
-    global _warm_up_stop
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
-    _warm_up_stop = threading.Event()
-    threading.Thread(target=_warm_up, args=(_warm_up_stop,), name="dancenet-warm-up").start()
+    warming.start()
 
 
 def unregister() -> None:
-    _warm_up_stop.set()
+    warming.stop()
     menus.unregister()
     properties.unregister()
     for cls in reversed(_CLASSES):

@@ -20,7 +20,7 @@ import bpy
 from dancenet_core.constants import DEFAULT_TEMPERATURE
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, rig, rollback
+from . import bonemap, rig, rollback, warming
 from .shapemap import RestBone
 from .vrmhumanoid import humanoid_map
 
@@ -292,9 +292,10 @@ class GenerationJob:
 
     def _run(self) -> None:
         try:
-            self.result = self._generator()(
-                **self._request.kwargs(), progress=self._progress, should_cancel=self._cancel.is_set
-            )
+            with warming.LOCK:  # never beside a warm-up step (warming.py)
+                self.result = self._generator()(
+                    **self._request.kwargs(), progress=self._progress, should_cancel=self._cancel.is_set
+                )
         except Exception as e:  # reported on the main thread; a cancelled job's error is dropped
             self.error = e
 

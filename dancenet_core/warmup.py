@@ -8,7 +8,9 @@ they get the argument types a real run gives them; nothing is written to the mus
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from pathlib import Path
 
 import numpy as np
@@ -41,11 +43,12 @@ def _dance() -> None:
     foot_fixer()(takes[0])
 
 
-def warm_up(cancelled: Callable[[], bool] = lambda: False) -> None:
+def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContextManager | None = None) -> None:
     """Load or compile what a Generate Dance needs, checking `cancelled` between steps (a compile cannot be
-    stopped midway, so each kernel is a step of its own). Safe beside a real run on another thread: numba
-    compiles each kernel once."""
+    stopped midway, so each kernel is a step of its own), each step holding `lock`: a caller that runs real
+    generations on other threads holds the same lock around them, so the two never race."""
     for step in (madmom_nets.load_compiled, madmom_dbn.load_compiled, _analysis, _dance):
         if cancelled():
             return
-        step()
+        with lock or contextlib.nullcontext():
+            step()

@@ -14,6 +14,7 @@ def addon():
     import blender_addon
 
     blender_addon.register()
+    blender_addon.warming.wait()  # the warm-up's compiles run before the tests, never beside them
     yield blender_addon
     blender_addon.unregister()
 

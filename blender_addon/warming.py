@@ -1,0 +1,47 @@
+"""The add-on's warm-up thread (the first Generate Dance's imports and numba compiles, done when the add-on is
+enabled: issue 27) and the lock a Generate Dance shares with it.
+
+Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not made to race
+one another, and a pytest process running Generate Dance beside a warm-up ended in a segmentation fault. Each
+warm-up step and each generation hold `LOCK`, so a click during the warm-up waits for its current step and
+then finds that work done.
+"""
+
+from __future__ import annotations
+
+import threading
+
+LOCK = threading.Lock()
+_stop = threading.Event()
+_thread: threading.Thread | None = None
+
+
+def _warm_up(stop: threading.Event) -> None:
+    """Never touches bpy, so disabling the add-on meanwhile only stops it early. Not a daemon thread: one frozen
+    mid-import or mid-compile when Python shuts down can hang the shutdown, so Python waits for it instead;
+    Blender disables its add-ons when it quits, so that wait is one step at most."""
+    try:
+        from dancenet_core.warmup import warm_up
+
+        warm_up(stop.is_set, LOCK)
+    except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
+        print(f"DanceNet: warm-up stopped: {e}")
+
+
+def start() -> None:
+    """Warm up on a thread of its own (each registration has its own stop signal)."""
+    global _stop, _thread
+    _stop = threading.Event()
+    _thread = threading.Thread(target=_warm_up, args=(_stop,), name="dancenet-warm-up")
+    _thread.start()
+
+
+def stop() -> None:
+    """Ask the warm-up to stop after its current step (without waiting: disabling must not freeze Blender)."""
+    _stop.set()
+
+
+def wait(timeout: float | None = None) -> None:
+    """Until the warm-up has ended (tests: nothing of it runs beside them)."""
+    if _thread is not None:
+        _thread.join(timeout)
