@@ -43,7 +43,7 @@ def _dancenet(args: argparse.Namespace) -> int:
 
 def _blend(args: argparse.Namespace) -> int:
     s = from_args(BlendSettings, args)
-    print(blend_files(s.start, s.end, s.alpha, s.out))
+    print(blend_files(s.start, s.end, s.alpha, s.out, s.data, s.pack))
     return 0
 
 

@@ -12,10 +12,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import torch
 
+from ..data.build import build_dataset
+from ..data.pack import load_pack
+from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..model.bundle import DanceNetBundle
 from ..model.export import bundle_to_runtime
+from ..representation import FeatureLayout
+from .dancenet import held_out_windows, windows_loss
 
 
 def blend(start: DanceNetBundle, end: DanceNetBundle, alpha: float) -> DanceNetBundle:
@@ -41,9 +47,25 @@ def blend(start: DanceNetBundle, end: DanceNetBundle, alpha: float) -> DanceNetB
     return DanceNetBundle(model, end.normalizer, end.skeleton, end.start_frames, info)
 
 
-def blend_files(start: Path, end: Path, alpha: float, out: Path) -> Path:
-    """Blend two weights files into `out` (the bundle, and its torch-free twin beside it as .npz)."""
+def blend_files(start: Path, end: Path, alpha: float, out: Path, data: Path | None = None,
+                pack: Path | None = None) -> Path:
+    """Blend two weights files into `out` (the bundle, and its torch-free twin beside it as .npz), with the
+    blend's own held-out loss on the windows `end`'s run measured (from `pack`, else the data folder)."""
     result = blend(DanceNetBundle.load(start), DanceNetBundle.load(end), alpha)
+    settings = result.info.get("settings", {})
+    held_out = set(result.info.get("validation_sequences", []))
+    name = "val" if held_out else "test"
+    keep = held_out or set(result.info.get("test_sequences", []))
+    pairs = [p for p in (load_pack(pack) if pack else build_dataset(data or default_data_dir(), progress=False))
+             if p.seq in keep and p.style in result.styles]
+    if not pairs:
+        raise DanceNetError(f"the data holds none of the run's {name} songs to measure the blend on")
+    windows = held_out_windows(pairs, result.normalizer, result.styles, FeatureLayout(55, 5),
+                               settings.get("window", 200), settings.get("seed", 0))
+    # The end's held-out figures (floats: val_loss, val_nll, ...) are not the blend's; its sequence lists stay.
+    result.info = {k: v for k, v in result.info.items()
+                   if not (k.startswith(("val_", "test_")) and isinstance(v, float))}
+    result.info |= windows_loss(result.model, windows, name, torch.device("cpu"))
     out.parent.mkdir(parents=True, exist_ok=True)
     result.save(out)
     bundle_to_runtime(result).save(out.with_suffix(".npz"))

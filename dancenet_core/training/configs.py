@@ -85,6 +85,9 @@ class BlendSettings:
     end: Path = _option(Path("runs/dancenet/dancenet.pt"), "weights of the run continued from START")
     alpha: float = _option(0.5, "how far toward END (0: START, 1: END)")
     out: Path = _option(Path("runs/blend/dancenet.pt"), "bundle to write (its .npz twin goes beside it)")
+    data: Path | None = _option(
+        None, "shared data folder to measure the blend's held-out loss on (default ../shared/data)")
+    pack: Path | None = _option(None, "or a training pack (`dancenet data pack`) to measure it on")
 
 
 @dataclass

@@ -25,7 +25,7 @@ from ..checkpoint import load_weights, save_weights
 from ..data.build import PairedSequence, build_dataset, mean_skeleton, with_mel_music
 from ..data.pack import load_pack
 from ..data.split import load_split
-from ..data.windows import WindowSampler
+from ..data.windows import Batch, WindowSampler
 from ..environment import default_data_dir
 from ..model.bundle import DanceNetBundle
 from ..model.dancenet import DanceNet
@@ -162,6 +162,24 @@ def travel_loss(model: torch.nn.Module, out: torch.Tensor, target: torch.Tensor,
     return torch.stack(terms).mean() if terms else out.new_zeros(())
 
 
+def held_out_windows(pairs: list[PairedSequence], norm: Normalizer, styles: list[str], layout: FeatureLayout,
+                     window: int, seed: int) -> Batch:
+    """The fixed, noise-free windows a run's held-out loss is measured on (the same for a run and its blends)."""
+    return WindowSampler(pairs, norm, styles, layout, window=window, stride=25, seed=seed).fixed_windows(64)
+
+
+def windows_loss(model: torch.nn.Module, windows: Batch, name: str, device: torch.device) -> dict[str, float]:
+    """`model`'s loss on `windows` as {name}_loss and its parts (the model is left in the mode it was in)."""
+    was_training = model.training
+    model.eval()
+    with torch.no_grad():
+        music = torch.tensor(windows.music, device=device)
+        o = model(torch.tensor(windows.motion, device=device), music, torch.tensor(windows.style, device=device))
+        loss, parts = model.loss(o, torch.tensor(windows.target[:, 1:], device=device), music[:, 1:])
+    model.train(was_training)
+    return {f"{name}_loss": loss.item()} | {f"{name}_{k}": v for k, v in parts.items()}
+
+
 def prime_rmsprop(opt: torch.optim.RMSprop, model: torch.nn.Module,
                   batch_loss: Callable[[], tuple[torch.Tensor, dict]], batches: int = 20) -> None:
     """Start RMSprop's running mean of squared gradients at their mean over `batches` batches, taking no step.
@@ -243,8 +261,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     # test songs (a figure for the card only).
     eval_name = "val" if held_out else "test"
     eval_pairs = [p for p in pairs if p.seq in held_out and p.style in styles] if held_out else test_pairs
-    test_windows = WindowSampler(eval_pairs, norm, styles, layout, window=args.window, stride=25,
-                                 seed=args.seed).fixed_windows(64)
+    test_windows = held_out_windows(eval_pairs, norm, styles, layout, args.window, args.seed)
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
         "variant": args.variant,
@@ -255,7 +272,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         "minutes_per_style": {s: round(sum(len(p.motion) for p in train_pairs if p.style == s) / 1500, 2)
                               for s in styles},
         "train_sequences": sorted(p.seq for p in train_pairs),
-        "test_sequences": sorted(p.seq for p in test_pairs),
+        "test_sequences": sorted(test_ids),  # the split's, also when a pack (which holds none of them) trains
         "styles_left_out": left_out,
         "train_minutes": sum(len(p.motion) for p in train_pairs) / 25 / 60,
         "windows": len(train_windows.index),
@@ -281,14 +298,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
                               info | {"steps": step, "train_seconds": elapsed})
 
     def held_out_loss() -> dict[str, float]:
-        model.eval()
-        with torch.no_grad():
-            tb = test_windows
-            music = torch.tensor(tb.music, device=device)
-            o = model(torch.tensor(tb.motion, device=device), music, torch.tensor(tb.style, device=device))
-            loss, parts = model.loss(o, torch.tensor(tb.target[:, 1:], device=device), music[:, 1:])
-        model.train()
-        return {f"{eval_name}_loss": loss.item()} | {f"{eval_name}_{k}": v for k, v in parts.items()}
+        return windows_loss(model, test_windows, eval_name, device)
 
     budget = args.minutes * 60
 

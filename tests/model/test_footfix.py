@@ -194,15 +194,17 @@ def _synthetic_music(frames: int, bpm: float, beats_per_bar: int) -> np.ndarray:
 
 
 def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
-    """The issue's gate on what the model is for, DanceNet's own dances (here to synthetic music, four takes per
-    style): sliding down by about half, jitter up at most 10%, toes neither through the floor nor floating, feet
-    near the floor as often, and no new freezes.
+    """The foot model on what it is for, DanceNet's own dances (here to synthetic music, four takes per style):
+    less sliding, jitter up at most 10%, toes neither through the floor nor floating, feet near the floor as
+    often, and no new freezes.
 
-    Sampled dances differ with the seed and, through rounding, between machines (BLAS kernels), so each bound
-    keeps a margin over what 64 such dances showed here (issue 26 item 12): sliding 0.42 of before over all of
-    them but 0.33-0.52 in sets of 8 (the gate's half is measured on the test split, 0.42 in the model card),
-    jitter at most 0.87 of before, toes at most 1.1 cm up, contact at least 0.89 of before, still stretches
-    grown to at most 0.24 s."""
+    Issue 23's gate is the real dancers' sliding on the validation songs (0.566): the shipped foot model is the
+    smallest sliding weight that meets it (0.549, `dancenet validate`, in the model card); real dancers glide, so
+    it no longer halves DanceNet's sliding. Sampled dances differ with the seed and, through rounding, between
+    machines (BLAS kernels), so each bound keeps a margin over what these dances showed here: sliding 0.74 of
+    before over 16 dances (issue 26 item 12 saw +-0.1 between sets of 8 with the earlier model), jitter at most
+    0.93 of before, toes at most 0.1 cm up, contact at least 0.99 of before, still stretches grown by at most
+    0.04 s (0.24 s with the earlier model)."""
     from dancenet_core.generate import DEFAULT_TEMPERATURE, sample_dance
     from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.model.sampler import Sampling, music_conditioning
@@ -223,7 +225,7 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
                     out.append((slide.slide_ratio, jitter(pos, 25.0), toes[..., 1].min(), slide.contact_ratio,
                                 longest_freeze_s(pos, 25.0)))
     b, a = np.array(before), np.array(after)
-    assert a[:, 0].mean() <= 0.6 * b[:, 0].mean(), (b[:, 0], a[:, 0])
+    assert a[:, 0].mean() <= 0.88 * b[:, 0].mean(), (b[:, 0], a[:, 0])
     assert (a[:, 1] <= 1.1 * b[:, 1]).all(), (b[:, 1], a[:, 1])
     assert (a[:, 2] >= -1e-5).all(), a[:, 2]  # the floor guard: exact, not sampled
     assert (a[:, 2] <= 0.02).all(), a[:, 2]
