@@ -35,7 +35,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from .atomic import atomic_path
 from .environment import default_workers, end_with_parent
-from .errors import DanceNetError
+from .errors import DanceNetError, first_line
 from .kinematics import fk_numpy
 from .motion import Motion
 from .progress import Progress
@@ -111,9 +111,10 @@ def gl_platform() -> str:
     )
 
 
-# The oldest PyOpenGL the preview is tested with; pyrender pins 3.1.0, whose errors cannot even be passed back
-# from the render workers (`cannot pickle '_ctypes.CArgObject'`).
-_MIN_PYOPENGL = (3, 1, 10)
+# The oldest PyOpenGL the preview draws with. pyrender pins 3.1.0, which draws on Python 3.11 (what
+# `pip install ".[render]"` gives there) but not on 3.13, where its array handlers reject the ctypes arguments
+# pyrender's off-screen contexts pass ("No array-type handler for type _ctypes.type").
+_MIN_PYOPENGL = (3, 1, 10) if sys.version_info >= (3, 13) else (3, 1, 0)
 
 
 def _check_render_extra() -> None:
@@ -126,7 +127,8 @@ def _check_render_extra() -> None:
                             'command, pip install "PyOpenGL==3.1.10" (pyrender pins 3.1.0)')
     version = importlib.metadata.version("PyOpenGL")
     if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
-        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview; "
+        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview on Python "
+                            f"{sys.version_info.major}.{sys.version_info.minor}; "
                             'install a newer one beside it: pip install "PyOpenGL==3.1.10" (pip warns about '
                             "pyrender's pin; the preview needs the newer one)")
 
@@ -764,13 +766,18 @@ def _worker_start(parent: int, motion: Motion, width: int, height: int, floor: f
 
 
 def _worker_draw(chunk: np.ndarray) -> np.ndarray:
-    """Frames [n, H, W, 3] of one chunk of frame numbers."""
+    """Frames [n, H, W, 3] of one chunk of frame numbers. Any error comes back as its one-line text: PyOpenGL's
+    errors carry ctypes arguments that cannot be pickled, which hid the real cause behind `cannot pickle
+    '_ctypes.CArgObject'` (issue 26 item 14)."""
     st = _worker_state
-    if "stage" not in st:
-        st["stage"] = _Stage(st["motion"], *st["size"], st["floor"])
-    motion = st["motion"]
-    pos, rot = fk_numpy(motion.skeleton, motion.rotations[chunk], motion.root_positions[chunk])
-    return np.stack([st["stage"].render(pos[k], rot[k], st["cams"][f]) for k, f in enumerate(chunk)])
+    try:
+        if "stage" not in st:
+            st["stage"] = _Stage(st["motion"], *st["size"], st["floor"])
+        motion = st["motion"]
+        pos, rot = fk_numpy(motion.skeleton, motion.rotations[chunk], motion.root_positions[chunk])
+        return np.stack([st["stage"].render(pos[k], rot[k], st["cams"][f]) for k, f in enumerate(chunk)])
+    except Exception as e:
+        raise RuntimeError(f"the preview's renderer failed: {type(e).__name__}: {first_line(e)}") from None
 
 
 def render_frames(
