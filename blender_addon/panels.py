@@ -1,4 +1,5 @@
-"""The DanceNet sidebar tab, in the 3D Viewport and in the Sequencer (same content)."""
+"""The DanceNet sidebar tab, in the 3D Viewport and in the Sequencer (same content): a main panel with the
+Generate button and presets, and sub-panels (Music, Dance, Rig, Takes, Export) that fold like Blender's own."""
 
 from __future__ import annotations
 
@@ -54,15 +55,38 @@ class _DanceNetPanel:
     bl_label = "DanceNet"
 
     def draw(self, context: bpy.types.Context) -> None:
+        """Presets and the one button that matters; the settings are in the sub-panels below."""
         layout = self.layout
-        props = context.scene.dancenet
         runtime = context.window_manager.dancenet
         row = layout.row(align=True)
         row.menu("DANCENET_MT_presets", text=DANCENET_MT_presets.bl_label, icon="PRESET")
         row.operator("dancenet.preset_add", text="", icon="ADD")
         row.operator("dancenet.preset_add", text="", icon="REMOVE").remove_active = True
+        if runtime.running:
+            row = layout.row(align=True)
+            row.progress(factor=runtime.progress, text=f"{runtime.stage} {runtime.progress:.0%}")
+            row.operator("dancenet.cancel", text="", icon="CANCEL")
+        else:
+            row = layout.row()
+            row.scale_y = 1.5
+            row.operator("dancenet.generate", icon="PLAY_SOUND")
+            layout.operator("dancenet.continue_dance", icon="FF")
 
-        col = layout.column()
+
+class _SubPanel:
+    """A fold of the DanceNet panel; `make_sub_panels` gives it a class per sidebar."""
+
+    bl_region_type = "UI"
+    bl_category = "DanceNet"
+
+
+class _Music(_SubPanel):
+    bl_label = "Music"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """The song (a file or a sound strip) and what the last analysis heard in it."""
+        props = context.scene.dancenet
+        col = self.layout.column()
         col.row().prop(props, "music_source", expand=True)
         if props.music_source == "FILE":
             col.prop(props, "music_file", text="")
@@ -72,12 +96,19 @@ class _DanceNetPanel:
                 col.label(text=strip.name, icon="SOUND")
             else:
                 col.label(text="Select a sound strip in the Sequencer", icon="INFO")
-
-        col = layout.column()
-        col.prop(props, "style")
         analysis = props.analysis_for(props.current_song(context.scene))
         if analysis:
             _draw_analysis(col, analysis)
+
+
+class _Dance(_SubPanel):
+    bl_label = "Dance"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """How the dance is made and keyed."""
+        props = context.scene.dancenet
+        col = self.layout.column()
+        col.prop(props, "style")
         col.prop(props, "seed")
         col.prop(props, "temperature")
         col.prop(props, "takes")
@@ -91,46 +122,65 @@ class _DanceNetPanel:
             row.prop(props, "part_start", text="From")
             row.prop(props, "part_end", text="To")
 
-        col = layout.column()
+
+class _Rig(_SubPanel):
+    bl_label = "Rig"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """Who dances: a new DanceNet rig, or the user's armature through a bone map."""
+        props = context.scene.dancenet
+        col = self.layout.column()
         col.row().prop(props, "target", expand=True)
         if props.target == "NEW":
             col.prop(props, "with_mesh")
-        else:
-            col.prop(props, "armature", text="")
-            col.prop(props, "bone_map")
-            if props.bone_map == "FILE":
-                col.prop(props, "bone_map_file", text="")
-            elif props.bone_map == "TEXT":
-                col.prop(props, "bone_map_text", text="")
-            col.operator("dancenet.edit_bone_map", icon="TEXT")
-            if props.armature is not None and props.armature.type == "ARMATURE":
-                _draw_matches(col, props)
+            return
+        col.prop(props, "armature", text="")
+        col.prop(props, "bone_map")
+        if props.bone_map == "FILE":
+            col.prop(props, "bone_map_file", text="")
+        elif props.bone_map == "TEXT":
+            col.prop(props, "bone_map_text", text="")
+        col.operator("dancenet.edit_bone_map", icon="TEXT")
+        if props.armature is not None and props.armature.type == "ARMATURE":
+            _draw_matches(col, props)
 
-        if runtime.running:
-            row = layout.row(align=True)
-            row.progress(factor=runtime.progress, text=f"{runtime.stage} {runtime.progress:.0%}")
-            row.operator("dancenet.cancel", text="", icon="CANCEL")
-        else:
-            row = layout.row()
-            row.scale_y = 1.5
-            row.operator("dancenet.generate", icon="PLAY_SOUND")
-            layout.operator("dancenet.continue_dance", icon="FF")
 
+class _Takes(_SubPanel):
+    bl_label = "Takes"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        """Shown once the rig has a take."""
         rig_obj = operators.export_target(context)
-        takes = pipeline.takes_of(rig_obj) if rig_obj is not None else []
-        if takes:
-            box = layout.box().column(align=True)
-            box.label(text="Takes (NLA)", icon="NLA")
-            active = rig_obj.animation_data.action
-            for _track, action in reversed(takes):  # newest first, as in the NLA editor
-                chosen = action == active
-                op = box.operator("dancenet.choose_take", text=action.name, depress=chosen,
-                                  icon="RADIOBUT_ON" if chosen else "RADIOBUT_OFF")
-                op.action = action.name
-        if rig_obj is not None and rig_obj.animation_data and rig_obj.animation_data.action:
-            row = layout.row(align=True)
-            row.operator("dancenet.export_fbx", icon="EXPORT")
-            row.operator("dancenet.export_bvh", icon="EXPORT")
+        return rig_obj is not None and bool(pipeline.takes_of(rig_obj))
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """The takes on the rig's NLA tracks, newest first as in the NLA editor; the chosen one plays."""
+        rig_obj = operators.export_target(context)
+        col = self.layout.column(align=True)
+        active = rig_obj.animation_data.action
+        for _track, action in reversed(pipeline.takes_of(rig_obj)):
+            chosen = action == active
+            op = col.operator("dancenet.choose_take", text=action.name, depress=chosen,
+                              icon="RADIOBUT_ON" if chosen else "RADIOBUT_OFF")
+            op.action = action.name
+
+
+class _Export(_SubPanel):
+    bl_label = "Export"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        """Shown once the rig has an action to export."""
+        rig_obj = operators.export_target(context)
+        return rig_obj is not None and rig_obj.animation_data is not None and rig_obj.animation_data.action is not None
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """The active take out to other programs."""
+        row = self.layout.row(align=True)
+        row.operator("dancenet.export_fbx", icon="EXPORT")
+        row.operator("dancenet.export_bvh", icon="EXPORT")
 
 
 class DANCENET_PT_view3d(_DanceNetPanel, bpy.types.Panel):
@@ -143,4 +193,17 @@ class DANCENET_PT_sequencer(_DanceNetPanel, bpy.types.Panel):
     bl_idname = "DANCENET_PT_sequencer"
 
 
-CLASSES = (DANCENET_PT_view3d, DANCENET_PT_sequencer)
+def make_sub_panels(parent: type[bpy.types.Panel]) -> tuple[type[bpy.types.Panel], ...]:
+    """One class per fold for `parent`'s sidebar: Blender registers a panel for a single space type."""
+    return tuple(
+        type(f"{parent.bl_idname}_{fold.bl_label.lower()}", (fold, bpy.types.Panel), {
+            "bl_space_type": parent.bl_space_type, "bl_parent_id": parent.bl_idname,
+            "bl_idname": f"{parent.bl_idname}_{fold.bl_label.lower()}",
+        })  # fmt: skip
+        for fold in (_Music, _Dance, _Rig, _Takes, _Export)
+    )
+
+
+MAIN_PANELS = (DANCENET_PT_view3d, DANCENET_PT_sequencer)
+SUB_PANELS = {parent.bl_idname: make_sub_panels(parent) for parent in MAIN_PANELS}
+CLASSES = (*MAIN_PANELS, *(sub for subs in SUB_PANELS.values() for sub in subs))

@@ -48,8 +48,10 @@ class Widget:
 class RecordingLayout:
     """Stands in for bpy.types.UILayout: records what `draw()` asks for (slots: an unknown setting raises)."""
 
-    kind: str = "column"  # column, row, box, split
+    kind: str = "column"  # column, row, box, split, panel (a sub-panel)
     align: bool = False
+    title: str = ""  # panel: its header
+    closed: bool = False  # panel: folded (DEFAULT_CLOSED), only its header drawn
     children: list[RecordingLayout | Widget | list[Widget]] = field(default_factory=list)
     enabled: bool = True
     active: bool = True
@@ -138,11 +140,19 @@ def _prop_widgets(
 
 
 def record_panel(context: bpy.types.Context, panel: type | None = None) -> RecordingLayout:
-    """Run the add-on's real panel `draw()` (the 3D Viewport one by default) and return what it laid out."""
+    """Run the add-on's real panel `draw()` (the 3D Viewport one by default), then each of its sub-panels that
+    polls true (a folded one recorded too, `closed`), and return what they laid out."""
     from blender_addon import panels
 
+    panel = panel or panels.DANCENET_PT_view3d
     root = RecordingLayout()
-    (panel or panels.DANCENET_PT_view3d).draw(SimpleNamespace(layout=root), context)
+    panel.draw(SimpleNamespace(layout=root), context)
+    for sub in panels.SUB_PANELS[panel.bl_idname]:
+        if not hasattr(sub, "poll") or sub.poll(context):
+            closed = "DEFAULT_CLOSED" in getattr(sub, "bl_options", ())
+            folded = RecordingLayout("panel", title=sub.bl_label, closed=closed)
+            root.children.append(folded)
+            sub.draw(SimpleNamespace(layout=folded), context)
     return root
 
 
@@ -345,6 +355,8 @@ def _layout(node: RecordingLayout | Widget | list[Widget], x: int, y: int, width
         return height
     if node.kind in {"row", "split"}:
         return _layout_row(node, x, y, width, draw)
+    if node.kind == "panel":
+        return _layout_sub_panel(node, x, y, width, draw)
     pad = BOX_PAD if node.kind == "box" else 0
     if node.kind == "box" and draw is not None:
         height = _layout(node, x, y, width, scale_y, None)
@@ -355,6 +367,23 @@ def _layout(node: RecordingLayout | Widget | list[Widget], x: int, y: int, width
         top += _layout(child, x + pad, top, width - 2 * pad, node.scale_y, draw)
         top += gap if i < len(node.children) - 1 else 0
     return top - y + pad
+
+
+def _layout_sub_panel(node: RecordingLayout, x: int, y: int, width: int, draw: ImageDraw.ImageDraw | None) -> int:
+    """A sub-panel: a header line with its disclosure triangle and title, its content under it unless folded."""
+    header = UNIT
+    if draw is not None:
+        draw.line([x - PANEL_PAD // 2, y, x + width + PANEL_PAD // 2, y], fill=PANEL_LINE, width=S)
+        mid = y + header / 2
+        if node.closed:
+            draw.polygon([(x + 3 * S, mid - 4 * S), (x + 3 * S, mid + 4 * S), (x + 8 * S, mid)], fill=TEXT)
+        else:
+            draw.polygon([(x + 2 * S, mid - 2 * S), (x + 10 * S, mid - 2 * S), (x + 6 * S, mid + 3 * S)], fill=TEXT)
+        draw.text((x + 16 * S, mid), node.title, fill=TEXT, font=FONT, anchor="lm")
+    if node.closed:
+        return header
+    body = RecordingLayout(children=node.children)
+    return header + GAP + _layout(body, x, y + header + GAP, width, 1.0, draw)
 
 
 def _layout_row(node: RecordingLayout, x: int, y: int, width: int, draw: ImageDraw.ImageDraw | None) -> int:
