@@ -49,6 +49,26 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     box.operator("dancenet.save_bone_map", icon="FILE_TICK")
 
 
+class DANCENET_UL_takes(bpy.types.UIList):
+    """The rig's DanceNet takes, newest first as in the NLA editor; clicking one plays it (`take_index`)."""
+
+    def draw_item(self, context: bpy.types.Context, layout: bpy.types.UILayout, data: bpy.types.AnimData,
+                  item: bpy.types.NlaTrack, icon: int, active_data: bpy.types.PropertyGroup, active_propname: str,
+                  index: int = 0, flt_flag: int = 0) -> None:  # fmt: skip
+        playing = item.strips[0].action == data.action
+        layout.label(text=item.strips[0].action.name, icon="PLAY" if playing else "ACTION")
+
+    def filter_items(self, context: bpy.types.Context, data: bpy.types.AnimData,
+                     propname: str) -> tuple[list[int], list[int]]:  # fmt: skip
+        """Only the tracks holding a take (a user's own tracks stay in the NLA editor), filtered by name."""
+        tracks = list(getattr(data, propname))
+        takes = {track.as_pointer() for track, _ in pipeline.takes_of(data.id_data)}
+        by_name = bpy.types.UI_UL_list.filter_items_by_name(self.filter_name, self.bitflag_filter_item, tracks)
+        shown = by_name or [self.bitflag_filter_item] * len(tracks)
+        flags = [flag if t.as_pointer() in takes else 0 for t, flag in zip(tracks, shown, strict=True)]
+        return flags, list(range(len(tracks) - 1, -1, -1))  # newest (top track) first
+
+
 class _DanceNetPanel:
     bl_region_type = "UI"
     bl_category = "DanceNet"
@@ -155,15 +175,10 @@ class _Takes(_SubPanel):
         return rig_obj is not None and bool(pipeline.takes_of(rig_obj))
 
     def draw(self, context: bpy.types.Context) -> None:
-        """The takes on the rig's NLA tracks, newest first as in the NLA editor; the chosen one plays."""
+        """The takes on the rig's NLA tracks; the chosen one plays, the others are muted."""
         rig_obj = operators.export_target(context)
-        col = self.layout.column(align=True)
-        active = rig_obj.animation_data.action
-        for _track, action in reversed(pipeline.takes_of(rig_obj)):
-            chosen = action == active
-            op = col.operator("dancenet.choose_take", text=action.name, depress=chosen,
-                              icon="RADIOBUT_ON" if chosen else "RADIOBUT_OFF")
-            op.action = action.name
+        self.layout.template_list("DANCENET_UL_takes", "", rig_obj.animation_data, "nla_tracks",
+                                  context.scene.dancenet, "take_index", rows=3)  # fmt: skip
 
 
 class _Export(_SubPanel):
@@ -206,4 +221,4 @@ def make_sub_panels(parent: type[bpy.types.Panel]) -> tuple[type[bpy.types.Panel
 
 MAIN_PANELS = (DANCENET_PT_view3d, DANCENET_PT_sequencer)
 SUB_PANELS = {parent.bl_idname: make_sub_panels(parent) for parent in MAIN_PANELS}
-CLASSES = (*MAIN_PANELS, *(sub for subs in SUB_PANELS.values() for sub in subs))
+CLASSES = (*MAIN_PANELS, *(sub for subs in SUB_PANELS.values() for sub in subs), DANCENET_UL_takes)

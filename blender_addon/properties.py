@@ -12,7 +12,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 from dancenet_core.constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import pipeline
+from . import operators, pipeline
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
 _style_items: list[tuple[str, str, str, int]] = []
@@ -40,6 +40,33 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
 
 def _is_armature(_self: Any, obj: bpy.types.Object) -> bool:
     return obj.type == "ARMATURE"
+
+
+def _take_tracks() -> tuple[bpy.types.Object | None, list[bpy.types.NlaTrack]]:
+    """The rig whose takes the panel lists (the active armature, else the target) and all its NLA tracks."""
+    rig_obj = operators.export_target(bpy.context)
+    if rig_obj is None or rig_obj.animation_data is None:
+        return rig_obj, []
+    return rig_obj, list(rig_obj.animation_data.nla_tracks)
+
+
+def _get_take_index(_self: Any) -> int:
+    """The Takes list's highlight: the NLA track of the rig's active take (-1: none). Read from the rig, not
+    stored, so a take chosen anywhere else (a generation, the NLA editor) is the one shown."""
+    rig_obj, tracks = _take_tracks()
+    if not tracks:
+        return -1
+    active = rig_obj.animation_data.action
+    return next((tracks.index(t) for t, action in pipeline.takes_of(rig_obj) if action == active), -1)
+
+
+def _set_take_index(_self: Any, index: int) -> None:
+    """A click on a take in the list plays it, as Choose Take does; a user's own track is never chosen."""
+    rig_obj, tracks = _take_tracks()
+    if 0 <= index < len(tracks):
+        for track, action in pipeline.takes_of(rig_obj):
+            if track == tracks[index]:
+                pipeline.choose_take(rig_obj, action)
 
 
 # The song may be given relative to the .blend ("//song.ogg", read through bpy.path.abspath); Blender 4.5+ warns
@@ -130,6 +157,8 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         name="Beat Markers", default=True, description="Mark bars and beats on the timeline"
     )
     with_mesh: BoolProperty(name="Mannequin", default=True, description="Give a new rig a simple body mesh")
+    take_index: IntProperty(name="Take", get=_get_take_index, set=_set_take_index, options=set(),
+                            description="The take that plays: its NLA track is on, the other takes' are muted")
     analysis: StringProperty(options={"HIDDEN"})  # JSON of the last style analysis, kept with the file
 
     def current_song(self, scene: bpy.types.Scene) -> str:

@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 class Widget:
     """One button as Blender would draw it: `kind` picks the look, `text` is the label the user reads."""
 
-    kind: str  # label, operator, check, number, menu, radio, text, pointer, progress, separator
+    kind: str  # label, operator, check, number, menu, radio, text, pointer, progress, separator, list item
     text: str = ""
     icon: str = "NONE"
     value: str = ""  # number / menu / text / pointer: what the field shows
@@ -48,7 +48,7 @@ class Widget:
 class RecordingLayout:
     """Stands in for bpy.types.UILayout: records what `draw()` asks for (slots: an unknown setting raises)."""
 
-    kind: str = "column"  # column, row, box, split, panel (a sub-panel)
+    kind: str = "column"  # column, row, box, split, list (a UIList), panel (a sub-panel)
     align: bool = False
     title: str = ""  # panel: its header
     closed: bool = False  # panel: folded (DEFAULT_CLOSED), only its header drawn
@@ -96,6 +96,22 @@ class RecordingLayout:
         kind = "operator" if depress is None else "radio"  # a pressed-in button reads as a chosen item
         self.children.append(Widget(kind, label, icon, selected=bool(depress), enabled=enabled, icon_only=not label))
         return SimpleNamespace()  # operator properties the panel sets (kept, not drawn)
+
+    def template_list(self, listtype_name: str, list_id: str, dataptr: bpy.types.bpy_struct, propname: str,
+                      active_dataptr: bpy.types.bpy_struct, active_propname: str, rows: int = 5, **_: Any) -> None:
+        """The UIList's own filter_items and draw_item, one recorded row per item shown, the active one selected."""
+        ui_list = getattr(bpy.types, listtype_name)
+        state = SimpleNamespace(filter_name="", use_filter_invert=False, bitflag_filter_item=1 << 30)
+        items = list(getattr(dataptr, propname))
+        flags, order = ui_list.filter_items(state, bpy.context, dataptr, propname)
+        active = getattr(active_dataptr, active_propname)
+        box = self._sub("list")
+        for index in sorted((i for i, f in enumerate(flags) if f & state.bitflag_filter_item), key=order.__getitem__):
+            row = box._sub("row")
+            ui_list.draw_item(state, bpy.context, row, dataptr, items[index], 0, active_dataptr, active_propname,
+                              index, flags[index])  # fmt: skip
+            for widget in walk(row):
+                widget.kind, widget.selected = "item", index == active
 
     def prop_search(self, data: bpy.types.bpy_struct, property: str, search_data: bpy.types.bpy_struct,
                     search_property: str, text: str = "", icon: str = "NONE") -> None:
@@ -189,6 +205,7 @@ OUTLINE = (61, 61, 61)
 TAB_BAR = (29, 29, 29)
 TAB = (40, 40, 40)
 ORANGE = (255, 160, 40)
+LIST_ACTIVE = (51, 77, 128)
 
 _FILL = {"operator": BUTTON, "check": BUTTON, "number": BUTTON, "menu": MENU, "text": FIELD, "pointer": FIELD,
          "progress": BUTTON}  # fmt: skip
@@ -234,7 +251,9 @@ def _icon(draw: ImageDraw.ImageDraw, name: str, cx: float, cy: float, color: tup
     """A few of Blender's icons, drawn with primitives (the real ones are compiled into Blender)."""
     r = 6 * S
     line = max(1, S)
-    if name in {"SOUND", "PLAY_SOUND"}:
+    if name == "PLAY":
+        draw.polygon([(cx - r * 0.6, cy - r), (cx - r * 0.6, cy + r), (cx + r * 0.8, cy)], fill=color)
+    elif name in {"SOUND", "PLAY_SOUND"}:
         if name == "PLAY_SOUND":
             draw.polygon([(cx - r, cy - r), (cx - r, cy + r), (cx + r * 0.2, cy)], fill=color)
             cx += r * 0.6
@@ -284,7 +303,9 @@ def _draw_widget(
     x0, y0, x1, y1 = box
     color = _dim(TEXT, w.enabled)
     corners = (not joined[0], not joined[1], not joined[1], not joined[0])
-    if w.kind == "label":
+    if w.kind in {"label", "item"}:  # a list item: a label, highlighted when active
+        if w.selected:
+            draw.rounded_rectangle([x0, y0, x1, y1], radius=3 * S, fill=LIST_ACTIVE)
         x = x0 + 2 * S
         if w.icon != "NONE":
             _icon(draw, w.icon, x + UNIT / 2 - 2 * S, (y0 + y1) / 2, color)
@@ -357,10 +378,11 @@ def _layout(node: RecordingLayout | Widget | list[Widget], x: int, y: int, width
         return _layout_row(node, x, y, width, draw)
     if node.kind == "panel":
         return _layout_sub_panel(node, x, y, width, draw)
-    pad = BOX_PAD if node.kind == "box" else 0
-    if node.kind == "box" and draw is not None:
+    pad = BOX_PAD if node.kind in {"box", "list"} else 0
+    if node.kind in {"box", "list"} and draw is not None:
         height = _layout(node, x, y, width, scale_y, None)
-        draw.rounded_rectangle([x, y, x + width, y + height], radius=4 * S, fill=BOX, outline=PANEL_LINE)
+        draw.rounded_rectangle([x, y, x + width, y + height], radius=4 * S, fill=BOX if node.kind == "box" else FIELD,
+                               outline=PANEL_LINE)  # fmt: skip
     gap = 0 if node.align else GAP
     top = y + pad
     for i, child in enumerate(node.children):

@@ -1,4 +1,5 @@
-"""Issue 27 item 6: a panel that reads like Blender's (fake generator): sub-panels in both sidebars."""
+"""Issue 27 item 6: a panel that reads like Blender's (fake generator): sub-panels in both sidebars, the takes in a
+UIList."""
 
 from __future__ import annotations
 
@@ -38,3 +39,33 @@ def test_sub_panels_register_under_the_main_panel_and_draw(scene, addon, song, s
     assert {"Export FBX", "Export BVH"} <= {w.text for w in shot.walk(folds["Export"])}
     image = shot.paint(root)
     assert image.height > 10 * shot.UNIT
+
+
+def test_takes_list_shows_the_takes_newest_first_and_a_click_plays_one(scene, addon, song):
+    shot = panel_screenshot()
+    assert generate(scene, song, takes=3) == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    rig.animation_data.nla_tracks.new().name = "my own track"  # a user's track: not a take, not listed
+    takes = [action.name for _track, action in addon.pipeline.takes_of(rig)]
+
+    def listed() -> list:
+        folds = sub_panels(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))
+        return [w for w in shot.walk(folds["Takes"]) if w.kind == "item"]
+
+    items = listed()
+    assert [w.text for w in items] == takes[::-1]  # newest first, as in the NLA editor
+    assert [w.selected for w in items] == [False, False, True]  # the first take plays after a generation
+
+    tracks = list(rig.animation_data.nla_tracks)
+    props = scene.dancenet
+    props.take_index = next(i for i, t in enumerate(tracks) if t.strips and t.strips[0].action.name == takes[2])
+    assert rig.animation_data.action.name == takes[2]
+    assert [t.mute for t, _ in addon.pipeline.takes_of(rig)] == [True, True, False]
+    assert [w.selected for w in listed()] == [True, False, False]
+
+    props.take_index = tracks.index(rig.animation_data.nla_tracks["my own track"])  # never chosen as a take
+    assert rig.animation_data.action.name == takes[2]
+    assert props.take_index == tracks.index(addon.pipeline.takes_of(rig)[2][0])
+
+    assert bpy.ops.dancenet.choose_take(action=takes[1]) == {"FINISHED"}  # the operator still works, and shows
+    assert [w.selected for w in listed()] == [False, True, False]
