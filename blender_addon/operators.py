@@ -286,6 +286,34 @@ class DANCENET_OT_fix_bone(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class DANCENET_OT_list_missing_joints(bpy.types.Operator):
+    """List the optional joints (fingers, face, ...) that the target armature has no bone for, in the Info editor"""
+
+    bl_idname = "dancenet.list_missing_joints"
+    bl_label = "List Missing Joints"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        armature = context.scene.dancenet.armature
+        return armature is not None and armature.type == "ARMATURE"
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        props = context.scene.dancenet
+        try:
+            chosen = pipeline.current_map(props)
+            _, skipped = bonemap.resolve(chosen, [b.name for b in props.armature.data.bones], props.armature.name)
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        if not skipped:
+            self.report({"INFO"}, f"Every joint of the dance has a bone on '{props.armature.name}'")
+            return {"FINISHED"}
+        for entry in skipped:  # one line each in the Info editor; the status bar keeps the summary below
+            self.report({"INFO"}, f"Not on this rig: {entry}")
+        self.report({"INFO"}, pipeline.missing_summary(skipped))
+        return {"FINISHED"}
+
+
 class DANCENET_OT_save_bone_map(bpy.types.Operator):
     """Save the bone map as it fits this armature; Auto then uses it in every file for rigs it fits"""
 
@@ -346,5 +374,6 @@ CLASSES = (
     DANCENET_OT_edit_bone_map,
     DANCENET_OT_fix_bone,
     DANCENET_OT_save_bone_map,
+    DANCENET_OT_list_missing_joints,
     DANCENET_OT_add_rig,
 )

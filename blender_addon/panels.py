@@ -31,7 +31,7 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     except DanceNetError as e:
         box.label(text=str(e), icon="ERROR")
         return
-    found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
+    found, unmatched = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
     missing = [j for j in REQUIRED_JOINTS if j not in found]
     box.prop(props, "show_matches", text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched",
              icon="TRIA_DOWN" if props.show_matches or missing else "TRIA_RIGHT", emboss=False)
@@ -42,6 +42,11 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
                 box.label(text=f"{joint.replace('_', ' ')}: {found[joint]}{how}", icon="CHECKMARK")
             else:
                 box.label(text=f"{joint.replace('_', ' ')}: no bone", icon="ERROR")
+    optional = [j for j in unmatched if j not in REQUIRED_JOINTS]  # as the dance's report counts them
+    if optional:  # one line, whatever the count: the list itself goes to the Info editor on request
+        row = box.row(align=True)
+        row.label(text=pipeline.missing_summary(optional), icon="INFO")
+        row.operator("dancenet.list_missing_joints", text="", icon="TEXT")
     row = box.row(align=True)
     row.prop(props, "fix_joint", text="")
     row.prop_search(props, "fix_bone", props.armature.data, "bones", text="")

@@ -168,6 +168,24 @@ def song_of_strip(strip: bpy.types.Strip) -> Path:
     return check_song(bpy.path.abspath(sound.filepath, library=sound.library))
 
 
+# Which part of the body an optional joint belongs to, for the one-line summary of those a rig lacks.
+_JOINT_GROUPS = (("fingers", ("index", "middle", "ring", "pinky", "thumb")), ("face", ("jaw", "eye")),
+                 ("spine", ("spine",)), ("collars", ("collar",)), ("toes", ("foot",)))
+
+
+def missing_summary(skipped: list[str]) -> str:
+    """One line for the optional joints a rig lacks (`bonemap.resolve`'s "joint (bones)" entries), so the report
+    fits the status bar: "30 optional joints not on this rig (fingers: 30)"; the list is one click away."""
+    counts: dict[str, int] = {}
+    for entry in skipped:
+        joint = entry.split(" ", 1)[0]
+        group = next((g for g, marks in _JOINT_GROUPS if any(m in joint for m in marks)), "other")
+        counts[group] = counts.get(group, 0) + 1
+    groups = ", ".join(f"{g}: {n}" for g, n in sorted(counts.items(), key=lambda gn: -gn[1]))  # most first
+    plural = "s" if len(skipped) != 1 else ""
+    return f"{len(skipped)} optional joint{plural} not on this rig ({groups})"
+
+
 def resolve_map(
     rig_obj: bpy.types.Object, bone_map: bonemap.BoneMap | None
 ) -> tuple[dict[str, str], list[str]]:
@@ -556,7 +574,7 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
         if muted:
             notes.append(f"muted constraints on {len(muted)} bones so the keys show")
     if skipped:
-        notes.append(f"not in this rig: {', '.join(skipped)}")
+        notes.append(missing_summary(skipped))
 
     kept = _keep_users_action(target)
     if kept:

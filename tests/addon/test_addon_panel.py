@@ -1,12 +1,14 @@
 """Issue 27 item 6: a panel that reads like Blender's (fake generator): sub-panels in both sidebars, the takes in a
-UIList."""
+UIList, the missing optional joints in one line."""
 
 from __future__ import annotations
 
 import pytest
-from scene_helpers import bpy, generate, panel_screenshot
+from doubles import mixamo_rest
+from scene_helpers import bpy, build_armature, generate, panel_screenshot
 
 FOLDS = ["Music", "Dance", "Rig", "Takes", "Export"]
+SUMMARY = "30 optional joints not on this rig (fingers: 30)"  # a Mixamo rig without its fingers
 
 
 def sub_panels(root) -> dict:
@@ -69,3 +71,24 @@ def test_takes_list_shows_the_takes_newest_first_and_a_click_plays_one(scene, ad
 
     assert bpy.ops.dancenet.choose_take(action=takes[1]) == {"FINISHED"}  # the operator still works, and shows
     assert [w.selected for w in listed()] == [False, True, False]
+
+
+def test_missing_optional_joints_are_one_line_with_the_list_on_request(scene, addon, song):
+    shot = panel_screenshot()
+    props = scene.dancenet
+    no_fingers = [row for row in mixamo_rest() if "Hand" not in row[0] or row[0].endswith("Hand")]
+    rig = build_armature("No fingers", no_fingers)
+    props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
+    recorded = shot.walk(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))
+    assert [w.text for w in recorded if "optional" in w.text] == [SUMMARY]
+    shown = {w.text for w in shot.walk(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))}
+    assert not any("index1" in text for text in shown)  # the joints themselves: on demand only
+    assert bpy.ops.dancenet.list_missing_joints() == {"FINISHED"}
+
+    _, skipped = addon.pipeline.resolve_map(rig, None)
+    summary = addon.pipeline.missing_summary(skipped)
+    assert summary == SUMMARY
+    assert generate(scene, song) == {"FINISHED"}
+    assert addon.pipeline.missing_summary(["jaw (jaw)", "left_foot (LeftToeBase)"]) == (
+        "2 optional joints not on this rig (face: 1, toes: 1)"
+    )
