@@ -54,6 +54,16 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     box.operator("dancenet.save_bone_map", icon="FILE_TICK")
 
 
+def _draw_frame_rate(layout: bpy.types.UILayout, render: bpy.types.RenderSettings) -> None:
+    """The scene's frame rate as Blender keeps it, frames per `fps_base` seconds (30000 / 1001 = 29.97): the dance
+    is resampled to that true rate."""
+    col = layout.column(align=True)
+    col.prop(render, "fps", text="Frame Rate")
+    col.prop(render, "fps_base", text="Base")
+    if render.fps_base != 1.0:
+        col.label(text=f"{render.fps / render.fps_base:.4g} fps")
+
+
 class DANCENET_UL_takes(bpy.types.UIList):
     """The rig's DanceNet takes, newest first as in the NLA editor; clicking one plays it (`take_index`)."""
 
@@ -139,7 +149,7 @@ class _Dance(_SubPanel):
         col.prop(props, "takes")
         col.prop(props, "footfix")
         col.prop(props, "add_markers")
-        col.prop(context.scene.render, "fps", text="Frame Rate")  # the dance is resampled to the scene's rate
+        _draw_frame_rate(col, context.scene.render)
         col.prop(props, "root_motion")
         col.prop(props, "use_part")
         if props.use_part:

@@ -1,11 +1,14 @@
 """Issue 27 item 6: a panel that reads like Blender's (fake generator): sub-panels in both sidebars, the takes in a
-UIList, the missing optional joints in one line."""
+UIList, the missing optional joints in one line, and the scene's true frame rate (fps / fps_base)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
-from doubles import mixamo_rest
-from scene_helpers import bpy, build_armature, generate, panel_screenshot
+from doubles import mixamo_rest, synthetic_motion, write_song
+from scene_helpers import MM, bpy, build_armature, fk_world, generate, panel_screenshot, world_heads
+
+from dancenet_core.skeleton import JOINT_NAMES
 
 FOLDS = ["Music", "Dance", "Rig", "Takes", "Export"]
 SUMMARY = "30 optional joints not on this rig (fingers: 30)"  # a Mixamo rig without its fingers
@@ -92,3 +95,25 @@ def test_missing_optional_joints_are_one_line_with_the_list_on_request(scene, ad
     assert addon.pipeline.missing_summary(["jaw (jaw)", "left_foot (LeftToeBase)"]) == (
         "2 optional joints not on this rig (face: 1, toes: 1)"
     )
+
+
+def test_a_scene_at_29_97_fps_is_keyed_at_its_true_rate(scene, addon, tmp_path):
+    """30000/1001 fps: a 20-s dance ends 599.4 frames on (599 keys; at 30 fps it would be 600), each key the dance
+    at (frame - first) / 29.97 s."""
+    shot = panel_screenshot()
+    scene.render.fps, scene.render.fps_base = 30000, 1001
+    rate = 30000 / 1001
+    shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))}
+    assert (shown["Frame Rate"].value, shown["Base"].value) == ("30000", "1001.000")
+    assert "29.97 fps" in shown
+    song = write_song(tmp_path / "twenty.wav", 20.0)
+    assert generate(scene, song) == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    first, last = (round(f) for f in rig.animation_data.action.frame_range)
+    assert last - first + 1 == round(20 * rate) == 599
+    assert (scene.frame_start, scene.frame_end) == (first, last)
+    expected = fk_world(synthetic_motion(20.0, 0).resampled(rate))
+    for f in (0, 300, 598):
+        scene.frame_set(first + f)
+        heads = world_heads(rig, JOINT_NAMES)
+        assert np.abs((heads - heads[0]) - (expected[f] - expected[f][0])).max() < MM
