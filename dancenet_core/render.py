@@ -11,13 +11,13 @@ faces) and follows the dancer's low-pass-filtered root, so steps do not shake it
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import functools
 import importlib.metadata
 import importlib.util
 import math
 import multiprocessing as mp
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -70,6 +70,8 @@ _PLATFORMS = ("egl", "osmesa")
 # Exactly what rendering needs, run in a child process: PyOpenGL picks its platform once, at import,
 # and a failed EGL start cannot be undone in the process that tried it.
 _PROBE = (
+    "from dancenet_core.render import pyopengl_compat\n"
+    "pyopengl_compat()\n"
     "import pyrender\n"
     "scene = pyrender.Scene()\n"
     "scene.add(pyrender.PerspectiveCamera(yfov=1.0))\n"
@@ -111,26 +113,26 @@ def gl_platform() -> str:
     )
 
 
-# The oldest PyOpenGL the preview draws with. pyrender pins 3.1.0, which draws on Python 3.11 (what
-# `pip install ".[render]"` gives there) but not on 3.13, where its array handlers reject the ctypes arguments
-# pyrender's off-screen contexts pass ("No array-type handler for type _ctypes.type").
-_MIN_PYOPENGL = (3, 1, 10) if sys.version_info >= (3, 13) else (3, 1, 0)
+def pyopengl_compat() -> None:
+    """Let PyOpenGL 3.1.0, which pyrender pins and `pip install ".[render]"` therefore installs, take ctypes
+    `byref` arguments on Python 3.12+: it looks their type up as builtins.CArgObject, which Python 3.12 renamed
+    _ctypes.CArgObject, so pyrender's off-screen contexts failed ("No array-type handler for type _ctypes.type").
+    Registers the type under the name it has here, as PyOpenGL 3.1.10 does itself; a no-op where it is known."""
+    from OpenGL.plugins import FormatHandler  # imports no platform: safe before the window system is chosen
+
+    byref = type(ctypes.byref(ctypes.c_int()))
+    if FormatHandler.match(byref) is None:
+        FormatHandler("ctypesparameter", "OpenGL.arrays.ctypesparameters.CtypesParameterHandler",
+                      [f"{byref.__module__}.{byref.__name__}"], isOutput=True)
 
 
 def _check_render_extra() -> None:
     """One line saying what to install when the render extra is missing (a pip install has no
-    scripts/apt-packages.txt to point at), or when pip gave pyrender the old PyOpenGL it pins."""
+    scripts/apt-packages.txt to point at)."""
     missing = [m for m in ("pyrender", "trimesh", "PIL", "OpenGL") if importlib.util.find_spec(m) is None]
     if missing:
         raise DanceNetError(f"the preview needs the render extra ({', '.join(missing)} missing): "
-                            'pip install "dancenet[render]" (from a checkout: ".[render]"), then, as a second '
-                            'command, pip install "PyOpenGL==3.1.10" (pyrender pins 3.1.0)')
-    version = importlib.metadata.version("PyOpenGL")
-    if tuple(int(v) for v in re.findall(r"\d+", version)[:3]) < _MIN_PYOPENGL:
-        raise DanceNetError(f"PyOpenGL {version} (the version pyrender pins) cannot draw the preview on Python "
-                            f"{sys.version_info.major}.{sys.version_info.minor}; "
-                            'install a newer one beside it: pip install "PyOpenGL==3.1.10" (pip warns about '
-                            "pyrender's pin; the preview needs the newer one)")
+                            'pip install "dancenet[render]" (from a checkout: ".[render]")')
 
 
 def _probe(platform: str) -> str | None:
@@ -499,6 +501,7 @@ class _Stage:
     _AMBIENT = (0.32, 0.32, 0.34)
 
     def __init__(self, motion: Motion, width: int, height: int, floor: float) -> None:
+        pyopengl_compat()
         import pyrender  # the render extra; it loads OpenGL, which must wait until a window system is chosen
         from OpenGL import GL
 
