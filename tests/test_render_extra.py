@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ctypes
 import importlib.util
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -62,13 +63,16 @@ def test_pyrenders_pinned_pyopengl_takes_byref_arguments() -> None:
 
 def test_a_render_workers_error_comes_back_as_its_text(monkeypatch: pytest.MonkeyPatch) -> None:
     """PyOpenGL's errors carry ctypes arguments that cannot be pickled; a worker's error used to arrive as
-    `cannot pickle '_ctypes.CArgObject'` and hide its cause. Now the caller gets the cause in one line."""
+    `cannot pickle '_ctypes.CArgObject'` and hide its cause. Now what a worker raises pickles, with the cause in
+    its one line (the worker's function is called here as the pool calls it)."""
 
     class BrokenStage:
         def __init__(self, *args: Any) -> None:
             raise ctypes.ArgumentError("argument 2: no handler", ctypes.byref(ctypes.c_int()))
 
-    monkeypatch.setattr(render, "_Stage", BrokenStage)  # forked workers inherit it
-    motion = small_motion(render._PARALLEL_MIN_FRAMES + 4)
-    with pytest.raises(RuntimeError, match="the preview's renderer failed: ArgumentError: .*no handler"):
-        list(render.iter_frames(motion, np.arange(motion.num_frames), 32, 24, workers=2))
+    motion = small_motion(8)
+    monkeypatch.setattr(render, "_Stage", BrokenStage)
+    monkeypatch.setattr(render, "_worker_state", {"motion": motion, "size": (32, 24), "floor": 0.0, "cams": []})
+    with pytest.raises(RuntimeError, match="the preview's renderer failed: ArgumentError: .*no handler") as e:
+        render._worker_draw(np.arange(2))
+    assert str(pickle.loads(pickle.dumps(e.value))) == str(e.value)
