@@ -18,7 +18,7 @@ from typing import Any
 import bpy
 
 from dancenet_core.constants import DEFAULT_TEMPERATURE
-from dancenet_core.errors import DanceNetError
+from dancenet_core.errors import DanceNetError, first_line
 
 from . import bonemap, rig, rollback, warming
 from .shapemap import RestBone
@@ -349,11 +349,37 @@ def _action_name(song: Path, style: str, seed: int, take: int, takes: int) -> st
     return f"{name} · take {take}" if takes > 1 else name
 
 
+# What a take's record holds (written by `_apply`), checked when a file is read back.
+_TAKE_FIELDS: dict[str, type | tuple[type, ...]] = {
+    "song": str, "style": str, "seed": int, "temperature": (int, float), "footfix": bool, "start_s": (int, float),
+    "end_s": (int, float), "root_motion": str, "bone_map": dict, "continues": (str, type(None)),
+}
+
+
+def stored_json(text: Any, kind: type) -> Any:
+    """JSON the add-on stored in a .blend, or None when it is unreadable or not a `kind`: a damaged or crafted
+    file must not raise out of a panel, a poll or a Generate Dance (issue 26: any saved file the add-on reads)."""
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        return None
+    return value if isinstance(value, kind) else None
+
+
 def take_info(action: bpy.types.Action | None) -> dict[str, Any] | None:
-    """How a DanceNet take was made, or None for any other action (a user's, or one without the record)."""
+    """How a DanceNet take was made, or None for any other action (a user's, one without the record, or one
+    whose record is not what the add-on writes)."""
     if action is None or TAKE_PROP not in action or MOTION_PROP not in action:
         return None
-    return json.loads(action[TAKE_PROP])
+    info = stored_json(action[TAKE_PROP], dict)
+    if info is None or not all(isinstance(info.get(k), t) for k, t in _TAKE_FIELDS.items()):
+        return None
+    names = info["bone_map"].items()
+    if not all(isinstance(k, str) and (isinstance(v, str) or (isinstance(v, list) and all(isinstance(x, str)
+                                                                                        for x in v)))
+               for k, v in names):
+        return None
+    return info
 
 
 def _store_take(action: bpy.types.Action, motion: Any, info: dict[str, Any]) -> None:
@@ -375,10 +401,18 @@ def take_motion(action: bpy.types.Action) -> Any:
     from dancenet_core.motion import Motion
     from dancenet_core.skeleton import Skeleton
 
-    d = action[MOTION_PROP]
-    skeleton = Skeleton(np.asarray(d["offsets"], np.float64).reshape(-1, 3))
-    rotations = np.asarray(d["rotations"], np.float64).reshape(-1, skeleton.num_joints, 3)
-    return Motion(rotations, np.asarray(d["root"], np.float64).reshape(-1, 3), d["fps"], skeleton)
+    try:
+        d = action[MOTION_PROP]
+        skeleton = Skeleton(np.asarray(d["offsets"], np.float64).reshape(-1, 3))
+        rotations = np.asarray(d["rotations"], np.float64).reshape(-1, skeleton.num_joints, 3)
+        motion = Motion(rotations, np.asarray(d["root"], np.float64).reshape(-1, 3), float(d["fps"]), skeleton)
+        if not (len(motion.root_positions) == motion.num_frames > 0 and np.isfinite(motion.rotations).all()
+                and np.isfinite(motion.root_positions).all() and 0 < motion.fps <= 1000):
+            raise ValueError("its frames do not fit together")
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise DanceNetError(f"The take {action.name} holds no readable dance ({first_line(e, 80)}): generate it "
+                            "again") from e
+    return motion
 
 
 def takes_of(rig_obj: bpy.types.Object) -> list[tuple[bpy.types.NlaTrack, bpy.types.Action]]:
@@ -494,7 +528,9 @@ def _song_strip(scene: bpy.types.Scene, song: Path, frame: int) -> bpy.types.Str
 
 
 def _set_markers(scene: bpy.types.Scene, result: Any, frame_start: int, fps: float) -> None:
-    ours = {(name, frame) for name, frame in json.loads(scene.get(MARKERS_PROP, "[]"))}
+    stored = stored_json(scene.get(MARKERS_PROP, "[]"), list) or []
+    ours = {(m[0], m[1]) for m in stored if isinstance(m, list) and len(m) == 2 and isinstance(m[0], str)
+            and isinstance(m[1], int)}
     for marker in [m for m in scene.timeline_markers if (m.name, m.frame) in ours]:
         scene.timeline_markers.remove(marker)
     downbeats = {round(float(t) * fps) for t in result.downbeat_times}

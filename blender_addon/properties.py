@@ -179,7 +179,11 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         """The last analysis, if it was of `song`."""
         if not self.analysis or not song:
             return None
-        data = json.loads(self.analysis)
+        data = pipeline.stored_json(self.analysis, dict)  # a damaged or crafted file: no analysis
+        if not (data and isinstance(data.get("song"), str) and isinstance(data.get("style"), str)
+                and isinstance(data.get("tempo_bpm"), int | float) and isinstance(data.get("probabilities"), dict)
+                and all(isinstance(k, str) and isinstance(v, int | float) for k, v in data["probabilities"].items())):
+            return None
         return data if Path(data["song"]) == Path(song) else None
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from doubles import make_fake_generator
-from scene_helpers import bpy, generate, snapshot
+from scene_helpers import bpy, generate, panel_screenshot, snapshot
 
 
 def rig_state(rig) -> dict:
@@ -132,3 +132,36 @@ def test_a_failure_at_any_step_of_applying_leaves_the_file_as_it_was(scene, addo
     assert bpy.context.view_layer.objects.active == other
     monkeypatch.setattr(owner, name, original)
     assert generate(scene, song) == {"FINISHED"}  # and the next Generate works
+
+
+_CRAFTED = ["{", "[]", '{"song": 1}', "[" * 100_000 + "]" * 100_000, "1" * 5000, '"text"']
+
+
+@pytest.mark.parametrize("text", _CRAFTED, ids=["broken", "list", "wrong fields", "nested", "huge number", "string"])
+def test_what_a_crafted_blend_stores_is_left_unread_never_raised(scene, addon, song, text):
+    """Issue 26, any saved file the add-on reads: a .blend whose take record, beat markers or last analysis were
+    damaged or crafted draws its panels, answers polls and dances; the take just is not one, the analysis not
+    shown, and markers it cannot read are left where they are."""
+    assert generate(scene, song) == {"FINISHED"}
+    rig = bpy.context.view_layer.objects.active
+    action = rig.animation_data.action
+    assert addon.pipeline.take_info(action) is not None
+    action[addon.pipeline.TAKE_PROP] = text
+    scene[addon.pipeline.MARKERS_PROP] = text
+    scene.dancenet.analysis = text
+    assert addon.pipeline.take_info(action) is None
+    assert scene.dancenet.analysis_for(str(song)) is None
+    assert not bpy.ops.dancenet.continue_dance.poll()
+    shot = panel_screenshot()
+    for panel in addon.panels.MAIN_PANELS:  # each with its sub-panels, through their real draw()
+        assert "Generate Dance" in {w.text for w in shot.walk(shot.record_panel(bpy.context, panel))}
+    assert generate(scene, song) == {"FINISHED"}  # markers it wrote before, now unreadable, are simply kept
+
+
+def test_a_take_whose_dance_is_damaged_is_one_line(scene, addon, song):
+    assert generate(scene, song) == {"FINISHED"}
+    action = bpy.context.view_layer.objects.active.animation_data.action
+    action[addon.pipeline.MOTION_PROP] = {"rotations": [0.0] * 7, "root": [0.0] * 3, "offsets": [0.0] * 165,
+                                          "fps": 25.0}
+    with pytest.raises(addon.pipeline.DanceNetError, match="holds no readable dance .*generate it again"):
+        addon.pipeline.take_motion(action)
