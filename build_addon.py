@@ -187,6 +187,30 @@ def build(out_dir: Path = ROOT / "dist", platforms: list[str] | None = None) -> 
     return paths
 
 
+
+def fresh_bpy(folder: Path) -> Path:
+    """bpy and what it requires, linked into one folder: a Blender's own Python with nothing else installed, to
+    install a built zip into as a user's Blender would (the install tests and bench/addon_first_click.py)."""
+    import importlib.metadata as md
+
+    from packaging.requirements import Requirement
+
+    folder.mkdir()
+    todo, seen = ["bpy"], set()
+    while todo:
+        name = re.sub(r"[-_.]+", "-", Requirement(todo.pop()).name).lower()
+        if name in seen:
+            continue
+        seen.add(name)
+        dist = md.distribution(name)
+        requires = (Requirement(r) for r in dist.requires or [])
+        todo += [str(r) for r in requires if r.marker is None or r.marker.evaluate({"extra": ""})]
+        for top in {Path(f).parts[0] for f in dist.files or []} - {"..", "__pycache__"}:
+            if not (folder / top).exists():
+                (folder / top).symlink_to(Path(dist.locate_file(top)))
+    return folder
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "dist", help="output folder (default: dist/)")

@@ -15,7 +15,6 @@ The installed size there is measured on disk. Prints JSON.
 from __future__ import annotations
 
 import argparse
-import importlib.metadata as md
 import importlib.util
 import json
 import os
@@ -121,32 +120,12 @@ def _pt_files(archive: Path) -> list[str]:
     return found
 
 
-def _fresh_bpy(folder: Path) -> Path:
-    """bpy and what it requires, linked into one folder: a Blender's own Python, nothing else installed."""
-    from packaging.requirements import Requirement
-
-    folder.mkdir()
-    todo, seen = ["bpy"], set()
-    while todo:
-        name = re.sub(r"[-_.]+", "-", Requirement(todo.pop()).name).lower()
-        if name in seen:
-            continue
-        seen.add(name)
-        dist = md.distribution(name)
-        requires = (Requirement(r) for r in dist.requires or [])
-        todo += [str(r) for r in requires if r.marker is None or r.marker.evaluate({"extra": ""})]
-        for top in {Path(f).parts[0] for f in dist.files or []} - {"..", "__pycache__"}:
-            if not (folder / top).exists():
-                (folder / top).symlink_to(Path(dist.locate_file(top)))
-    return folder
-
-
 def first_clicks(archive: Path) -> dict:
     """This interpreter's bpy: the first Generate Dance after a fresh install, clicked at once and after the
     warm-up, each in its own scratch Blender; and what the install put on disk."""
     out: dict = {"python": platform.python_version()}
     with tempfile.TemporaryDirectory(prefix="dancenet-first-click-") as tmp:
-        fresh = _fresh_bpy(Path(tmp) / "fresh")
+        fresh = _build_addon().fresh_bpy(Path(tmp) / "fresh")
         for case, wait in (("clicked_at_once", "0"), ("clicked_after_warm_up", "1")):
             scratch = Path(tmp) / case
             user = scratch / "blender"

@@ -6,7 +6,6 @@ sound strip keys the rig with the shipped model and never imports torch. `make t
 
 from __future__ import annotations
 
-import importlib.metadata as md
 import importlib.util
 import os
 import re
@@ -91,24 +90,6 @@ def test_every_zip_carries_wheels_for_its_platform_and_each_python(zips: dict[st
         assert not dists & build_addon.BUNDLED_WITH_BLENDER
 
 
-def _fresh_bpy(folder: Path) -> Path:
-    """bpy and what it requires, linked into one folder: a Blender's own Python, nothing else installed."""
-    folder.mkdir()
-    todo, seen = ["bpy"], set()
-    while todo:
-        name = _requirement_name(todo.pop())
-        if name in seen:
-            continue
-        seen.add(name)
-        dist = md.distribution(name)
-        requires = (Requirement(r) for r in dist.requires or [])
-        todo += [str(r) for r in requires if r.marker is None or r.marker.evaluate({"extra": ""})]
-        for top in {Path(f).parts[0] for f in dist.files or []} - {"..", "__pycache__"}:
-            if not (folder / top).exists():
-                (folder / top).symlink_to(Path(dist.locate_file(top)))
-    return folder
-
-
 INSTALL_AND_GENERATE = """
 import os, sys, time
 sys.path.insert(0, sys.argv[1])  # the fresh bpy: this interpreter runs with -I -S, so nothing else is importable
@@ -142,7 +123,7 @@ print("CACHES", os.environ["DANCENET_CACHE"], os.environ["NUMBA_CACHE_DIR"])
 
 
 def test_linux_zip_installs_into_a_fresh_blender_and_dances(zips: dict[str, Path], tmp_path: Path) -> None:
-    fresh = _fresh_bpy(tmp_path / "fresh")
+    fresh = build_addon.fresh_bpy(tmp_path / "fresh")
     user = tmp_path / "blender"
     env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_USER_", "DANCENET_", "NUMBA_"))}
     env.update(HOME=str(tmp_path / "home"), BLENDER_USER_RESOURCES=str(user))
