@@ -15,7 +15,7 @@ where the dance puts them, scaled like the hips, on a rig whose limbs are longer
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import bpy
@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from dancenet_core.errors import DanceNetError
 from dancenet_core.kinematics import fk_numpy
 
-from . import rigdef
+from . import rigcontrols, rigdef
 
 if TYPE_CHECKING:
     from dancenet_core.motion import Motion
@@ -41,6 +41,12 @@ class PoseTracks:
     root_locations: np.ndarray  # [T, 3]
     # A root bone above the hips: its name, quaternions [T, 4] and locations [T, 3] (root-bone motion).
     floor_bone: tuple[str, np.ndarray, np.ndarray] | None = None
+    # Each mapped bone's world matrices [T, 4, 4]: where a control rig's deform bones must go.
+    world: dict[str, np.ndarray] = field(default_factory=dict)
+    # Bones keyed in the Euler order they already use (a control rig's): bone -> angles [T, 3] (X, Y, Z).
+    eulers: dict[str, np.ndarray] = field(default_factory=dict)
+    # Custom properties keyed once (a control rig's IK/FK switches): data path -> value.
+    properties: dict[str, float] = field(default_factory=dict)
 
     @property
     def num_frames(self) -> int:
@@ -146,13 +152,15 @@ def _floor_tracks(rest: np.ndarray, a: np.ndarray, o: np.ndarray, turn: np.ndarr
 
 
 def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
-             floor: tuple[str, np.ndarray, np.ndarray] | None = None) -> PoseTracks:
+             floor: tuple[str, np.ndarray, np.ndarray] | None = None,
+             parents: dict[str, str | None] | None = None) -> PoseTracks:
     """Pose tracks that make `rig` perform `motion`; `bone_map` maps joint names to existing bone names.
 
     The map must contain the pelvis and the joints in `rigdef.REQUIRED_JOINTS` (see `bonemap.resolve`).
     Unmapped bones keep an identity pose and ride along with their parents. With `floor` = (root bone,
     floor points [T, 3], heading [T]) (see `rootmotion.split_root`), `motion` is the dance seen from the
-    root bone, and the root bone is keyed to carry it along the floor.
+    root bone, and the root bone is keyed to carry it along the floor. `parents` (mapped bone -> mapped bone)
+    stands for the armature's parenting where constraints, not parents, chain the bones (a control rig).
     """
     skeleton = motion.skeleton
     mapped = {skeleton.index(joint): bone for joint, bone in bone_map.items()}
@@ -208,22 +216,31 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
 
     limb_turn: dict[str, np.ndarray] = {}  # lower limb bone -> its extra world turn from the limb's IK
 
-    needed: set[str] = set()
+    def parent_of(name: str) -> str | None:
+        if parents is not None:
+            return parents[name]
+        return None if bones[name].parent is None else bones[name].parent.name
+
+    depth: dict[str, int] = {}  # the mapped bones and the bones above them -> how many bones are above
+
+    def depth_of(name: str) -> int:
+        if name not in depth:
+            up = parent_of(name)
+            depth[name] = 0 if up is None else depth_of(up) + 1
+        return depth[name]
+
     for bone in mapped.values():
-        b = bones[bone]
-        while b is not None and b.name not in needed:
-            needed.add(b.name)
-            b = b.parent
+        depth_of(bone)
     travel = _travel_bone(rig, bone_map)
     posed: dict[str, np.ndarray] = {}  # bone -> world matrices [T or 1, 4, 4]
     rotations: dict[str, np.ndarray] = {}
     root_locations = np.zeros((motion.num_frames, 3))
-    for name in sorted(needed, key=lambda n: len(bones[n].parent_recursive)):
-        parent = bones[name].parent
+    for name in sorted(depth, key=depth.__getitem__):
+        parent = parent_of(name)
         if parent is None:
             identity_pose = rest[name][None]
         else:
-            identity_pose = posed[parent.name] @ (np.linalg.inv(rest[parent.name]) @ rest[name])
+            identity_pose = posed[parent] @ (np.linalg.inv(rest[parent]) @ rest[name])
         j = joint_of.get(name)
         if name == travel != mapped[0]:  # above the hips and the spine: it carries the body to where the hips go
             offset = root_target - theirs[0]
@@ -260,7 +277,7 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
             root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
             m[:, :3, 3] = root_target
         posed[name] = m
-    tracks = PoseTracks(rotations, travel, root_locations)
+    tracks = PoseTracks(rotations, travel, root_locations, world={b: posed[b] for b in mapped.values()})
     if floor is not None:
         root, points, yaw = floor
         a = scale * qc
@@ -329,6 +346,12 @@ def write_action(rig: bpy.types.Object, tracks: PoseTracks, name: str, frame_sta
     path = f'pose.bones["{bpy.utils.escape_identifier(tracks.root_bone)}"].location'
     for i in range(3):
         _fill(new_fcurve(path, i, tracks.root_bone), frames, tracks.root_locations[:, i])
+    for bone, angles in tracks.eulers.items():
+        path = f'pose.bones["{bpy.utils.escape_identifier(bone)}"].rotation_euler'
+        for i in range(3):
+            _fill(new_fcurve(path, i, bone), frames, angles[:, i])
+    for path, value in tracks.properties.items():
+        _fill(new_fcurve(path, 0, "IK/FK"), frames[:1], np.array([value]))
     if tracks.floor_bone is not None:
         bone, quats, locations = tracks.floor_bone
         rig.pose.bones[bone].rotation_mode = "QUATERNION"
@@ -341,6 +364,168 @@ def write_action(rig: bpy.types.Object, tracks: PoseTracks, name: str, frame_sta
     anim.action = action
     if slot is not None:
         anim.action_slot = slot
+    return action
+
+
+def _joint_parents(skeleton: Skeleton, bone_map: dict[str, str]) -> dict[str, str | None]:
+    """Mapped bone -> the bone of the nearest mapped joint above its joint (None for the pelvis')."""
+    parents: dict[str, str | None] = {}
+    for joint, bone in bone_map.items():
+        p = skeleton.parents[skeleton.index(joint)]
+        while p >= 0 and skeleton.names[p] not in bone_map:
+            p = skeleton.parents[p]
+        parents[bone] = bone_map[skeleton.names[p]] if p >= 0 else None
+    return parents
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles [T] between rotations a and b [T, 3, 3]."""
+    return np.arccos(np.clip((np.einsum("tij,tij->t", a, b) - 1.0) / 2.0, -1.0, 1.0))
+
+
+def _miss(posed: np.ndarray, target: np.ndarray, aimed: bool) -> np.ndarray:
+    """Angles [T] between bones' posed and target matrices [T, 4, 4]: between their Y axes if `aimed`."""
+    if aimed:
+        y, want = _unit(posed)[:, :, 1], _unit(target)[:, :, 1]
+        return np.arccos(np.clip(np.einsum("ti,ti->t", y, want), -1.0, 1.0))
+    return _angle(_unit(posed), _unit(target))
+
+
+def _unit(m: np.ndarray) -> np.ndarray:
+    """The rotation part [..., 3, 3] of matrices, a bone's stretch or the object's scale taken out."""
+    r = m[..., :3, :3]
+    return r / np.linalg.norm(r, axis=-2, keepdims=True)
+
+
+def _evaluate(rig: bpy.types.Object, scene: bpy.types.Scene, frames: np.ndarray, bones: list[str]) -> np.ndarray:
+    """Armature-space matrices [T, B, 4, 4] of `bones` as Blender evaluates them at each frame: constraints,
+    drivers and the IK/FK switches included, whatever the rig does between its controls and its bones."""
+    pose = rig.pose.bones
+    index = [pose.find(b) for b in bones]
+    buf = np.empty(len(pose) * 16, dtype=np.float32)
+    out = np.empty((len(frames), len(bones), 4, 4))
+    for t, frame in enumerate(frames):
+        scene.frame_set(int(frame))
+        pose.foreach_get("matrix", buf)
+        out[t] = np.swapaxes(buf.reshape(-1, 4, 4)[index], 1, 2)  # Blender lays matrices out by column
+    return out
+
+
+# Control-rig solve: passes (one evaluation of every frame each) until the deform bones turn within this of
+# where the dance wants them; a rig whose controls drive its bones rigidly converges in two or three.
+_SOLVE_PASSES = 6
+_SOLVE_TOLERANCE_DEG = 0.1
+
+
+def _control_tracks(rig: bpy.types.Object, controls: rigcontrols.ControlRig, bases: dict[str, np.ndarray],
+                    location: np.ndarray, floor: tuple[str, np.ndarray, np.ndarray] | None) -> PoseTracks:
+    """The controls' pose-bone values: each in its own rotation mode (Euler orders kept, so the rig's other
+    actions still read), the pelvis' control with its location, the IK/FK switches on FK."""
+    tracks = PoseTracks({}, controls.controls["pelvis"][0], location, floor)
+    for bone, basis in bases.items():
+        mode = rig.pose.bones[bone].rotation_mode
+        if mode in {"QUATERNION", "AXIS_ANGLE"}:
+            tracks.rotations[bone] = _continuous_quaternions(basis)
+        else:
+            angles = Rotation.from_matrix(basis).as_euler(mode.lower())
+            tracks.eulers[bone] = np.unwrap(angles[:, [mode.index(a) for a in "XYZ"]], axis=0)
+    for pb in rig.pose.bones:
+        for prop, value in controls.switches.items():
+            if prop in pb:
+                tracks.properties[f'pose.bones["{bpy.utils.escape_identifier(pb.name)}"]["{prop}"]'] = value
+    return tracks
+
+
+def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str], controls: rigcontrols.ControlRig,
+                  name: str, frame_start: int, root_bone: bool) -> bpy.types.Action:
+    """Key a control rig's controls so its deform bones (`bone_map`) perform `motion`, no constraint muted.
+
+    The controls do not sit like the deform bones (other rest orientations, bones and constraints between),
+    so the solve runs through Blender itself: key the controls, evaluate every frame, turn each control by
+    what its deform bone still lacks (and move the pelvis' control by what the hips lack), parents first, a
+    child counting on its parent's turn, and again until the bones are where the dance wants them.
+    """
+    from dancenet_core.rootmotion import split_root
+
+    floor = None
+    if root_bone:
+        if controls.floor not in rig.data.bones:
+            raise DanceNetError(f"Root Bone motion needs {controls.name}'s '{controls.floor}' control, which "
+                                f"'{rig.name}' lacks: choose another Root Motion")
+        motion, points, yaw = split_root(motion)
+        floor = (controls.floor, points, yaw)
+    dance = retarget(rig, motion, bone_map, floor, _joint_parents(motion.skeleton, bone_map))
+    # The bone measured per joint, and where the dance wants it (its rest offset from the mapped bone kept).
+    data = rig.data.bones
+    measured = {j: bone_map[j] for j in controls.controls}
+    if controls.exact is not None:
+        deform, exact = controls.exact
+        for j, bone in measured.items():
+            twin = exact + bone.removeprefix(deform)
+            if j not in controls.aimed and bone.startswith(deform) and twin in data:
+                measured[j] = twin
+    to_armature = np.linalg.inv(np.array(rig.matrix_world))
+    targets = {j: to_armature @ dance.world[bone_map[j]] @ np.linalg.inv(np.array(data[bone_map[j]].matrix_local))
+               @ np.array(data[measured[j]].matrix_local) for j in controls.controls}
+    if dance.floor_bone is not None:  # the dance was retargeted as seen from the floor control at rest
+        _, quats, locations = dance.floor_bone
+        rest = np.array(rig.data.bones[controls.floor].matrix_local)
+        carry = np.broadcast_to(np.eye(4), (dance.num_frames, 4, 4)).copy()
+        carry[:, :3, :3] = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()
+        carry[:, :3, 3] = locations
+        carry = rest @ carry @ np.linalg.inv(rest)
+        targets = {j: carry @ m for j, m in targets.items()}
+
+    # (joint, control) pairs, outer controls first; a control's turn carries the controls hanging below it.
+    pairs = sorted(((j, c) for j, cs in controls.controls.items() for c in cs),
+                   key=lambda pair: len(data[pair[1]].parent_recursive))
+    keyed = {c for _, c in pairs}
+    above = {c: next((p.name for p in data[c].parent_recursive if p.name in keyed), None) for _, c in pairs}
+    mover = controls.controls["pelvis"][0]
+
+    n = dance.num_frames
+    frames = frame_start + np.arange(n)
+    bases = {c: np.broadcast_to(np.eye(3), (n, 3, 3)).copy() for c in keyed}
+    location = np.zeros((n, 3))
+    scene = bpy.context.scene
+    frame_before = scene.frame_current
+    action = None
+    watched = sorted(keyed | set(measured.values()))
+    for _ in range(_SOLVE_PASSES):
+        if action is not None:
+            bpy.data.actions.remove(action)
+        action = write_action(rig, _control_tracks(rig, controls, bases, location, dance.floor_bone), name,
+                              frame_start)
+        at = dict(zip(watched, _evaluate(rig, scene, frames, watched).swapaxes(0, 1), strict=True))
+        error = max(_miss(at[measured[j]], targets[j], j in controls.aimed).max() for j in controls.controls)
+        if error < np.radians(_SOLVE_TOLERANCE_DEG):
+            break
+        turns: dict[str, np.ndarray] = {}  # control -> what this pass does to it, a rigid motion [T, 4, 4]
+        for j, c in pairs:
+            carried = turns[above[c]] if above[c] is not None else np.eye(4)
+            a_control, a_driven = carried @ at[c], carried @ at[measured[j]]  # after the controls above it turn
+            if j in controls.aimed:
+                turn = _min_rotations(a_driven[:, :3, 1], targets[j][:, :3, 1])
+            else:
+                turn = _unit(targets[j]) @ np.swapaxes(_unit(a_driven), 1, 2)
+            head = a_control[:, :3, 3]
+            move = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+            move[:, :3, :3] = turn
+            move[:, :3, 3] = head - np.einsum("tij,tj->ti", turn, head)
+            if c == mover:
+                shift = targets[j][:, :3, 3] - (move @ a_driven)[:, :3, 3]
+                move[:, :3, 3] += shift
+                # The head moves by `shift` in armature space; the location is in the frame the bone has with no
+                # pose, which is its current frame turned back by its basis.
+                location += np.einsum("tij,tj->ti", bases[c] @ np.linalg.inv(a_control[:, :3, :3]), shift)
+            u = _unit(a_control)
+            bases[c] = bases[c] @ np.swapaxes(u, 1, 2) @ turn @ u
+            turns[c] = move @ carried
+    else:
+        bpy.data.actions.remove(action)
+        action = write_action(rig, _control_tracks(rig, controls, bases, location, dance.floor_bone), name,
+                              frame_start)
+    scene.frame_set(frame_before)
     return action
 
 
@@ -369,11 +554,15 @@ def apply_motion(
 
     `root_motion` (see `dancenet_core.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
     top of the hips' chain carries the floor path and heading). A root bone of a rig made by DanceNet is
-    keyed at rest in the other modes, so a take never inherits another take's root pose.
+    keyed at rest in the other modes, so a take never inherits another take's root pose. A control rig
+    (Rigify, Auto-Rig Pro: `rigcontrols`) is keyed on its controls instead of the mapped bones.
     """
     from dancenet_core.rootmotion import apply_mode, split_root
 
     motion = apply_mode(motion.resampled(fps), root_motion)
+    controls = rigcontrols.find(rig.data.bones.keys(), bone_map)
+    if controls is not None:
+        return _key_controls(rig, motion, bone_map, controls, action_name, frame_start, root_motion == "root-bone")
     root = root_bone_of(rig, bone_map["pelvis"])
     if root_motion == "root-bone":
         if root is None:

@@ -20,7 +20,7 @@ import bpy
 from dancenet_core.constants import DEFAULT_TEMPERATURE
 from dancenet_core.errors import DanceNetError, first_line
 
-from . import bonemap, rig, rollback, warming
+from . import bonemap, rig, rigcontrols, rollback, warming
 from .shapemap import RestBone
 from .vrmhumanoid import humanoid_map
 
@@ -605,6 +605,8 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
         if props is not None:  # the next Generate adds takes to this rig instead of building another
             props.target, props.armature, props.bone_map = "EXISTING", target, "AUTO"
             notes.append("the next Generate adds a take to this rig")
+    elif (controls := rigcontrols.find(target.data.bones.keys(), bone_map)) is not None:
+        notes.append(f"keyed {controls.name}'s FK controls (IK/FK switches on FK)")
     else:
         muted = keyframes.mute_overriding_constraints(target, list(bone_map.values()))
         if muted:

@@ -1,0 +1,86 @@
+"""Control rigs (Rigify, Auto-Rig Pro): which control an animator turns for each joint, so a dance is keyed
+on the controls rather than on the deform bones the mesh is skinned to. Pure data and names (no bpy).
+
+A control rig's deform bones follow its controls through constraints. Keying the deform bones means muting
+those constraints, and then the controls no longer move the mesh. Keying the FK controls (with the rig's
+IK/FK switches on FK) keeps the rig whole: an animator refines the dance with the controls they know.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass, replace
+
+from .rigdef import REQUIRED_JOINTS
+
+_SIDES = (("left", "L"), ("right", "R"))
+_FINGERS = ("index", "middle", "ring", "pinky", "thumb")
+
+
+@dataclass(frozen=True)
+class ControlRig:
+    """A rig family's controls: joint -> the controls that turn its bone, outermost first (the pelvis' first
+    carries the body through space and is keyed with its location; Rigify's hips bone also hangs from an FK
+    control below the torso), the control at the top of the rig (keyed with the floor path in Root Bone
+    motion), the custom properties that switch limbs between IK and FK (property -> its value for FK).
+
+    `exact` renames a deform bone to the bone that follows its controls exactly (Rigify's ORG- bones: the
+    DEF- ones spread a limb's twist over segments), which the solve measures instead. `aimed` joints' bones
+    are stretched between two controls that share their roll, so only where they point is solved for.
+    """
+
+    name: str
+    controls: dict[str, tuple[str, ...]]
+    floor: str
+    switches: dict[str, float]
+    exact: tuple[str, str] | None = None
+    aimed: frozenset[str] = frozenset()
+
+
+def _rigify() -> dict[str, tuple[str, ...]]:
+    # Below the torso's pivot Rigify's FK spine hangs downwards: spine_fk.001 turns the lower back, and
+    # spine_fk under it the hips bone.
+    controls = {"pelvis": ("torso", "spine_fk"), "spine1": ("spine_fk.001",), "spine2": ("spine_fk.002",),
+                "spine3": ("spine_fk.003",), "neck": ("neck",), "head": ("head",)}  # fmt: skip
+    for side, s in _SIDES:
+        for joint, bone in (("collar", "shoulder"), ("shoulder", "upper_arm_fk"), ("elbow", "forearm_fk"),
+                            ("wrist", "hand_fk"), ("hip", "thigh_fk"), ("knee", "shin_fk"), ("ankle", "foot_fk"),
+                            ("foot", "toe_fk")):  # fmt: skip
+            controls[f"{side}_{joint}"] = (f"{bone}.{s}",)
+        for finger in _FINGERS:
+            for n in (1, 2, 3):
+                controls[f"{side}_{finger}{n}"] = (f"{'' if finger == 'thumb' else 'f_'}{finger}.0{n}.{s}",)
+    return controls
+
+
+def _auto_rig_pro() -> dict[str, tuple[str, ...]]:
+    controls = {"pelvis": ("c_root_master.x", "c_root.x"), "spine1": ("c_spine_01.x",), "spine2": ("c_spine_02.x",),
+                "spine3": ("c_spine_03.x",), "neck": ("c_neck.x",), "head": ("c_head.x",)}  # fmt: skip
+    for side, s in _SIDES:
+        for joint, bone in (("collar", "c_shoulder"), ("shoulder", "c_arm_fk"), ("elbow", "c_forearm_fk"),
+                            ("wrist", "c_hand_fk"), ("hip", "c_thigh_fk"), ("knee", "c_leg_fk"), ("ankle", "c_foot_fk"),
+                            ("foot", "c_toes_fk")):  # fmt: skip
+            controls[f"{side}_{joint}"] = (f"{bone}.{s.lower()}",)
+        for finger in _FINGERS:
+            for n in (1, 2, 3):
+                controls[f"{side}_{finger}{n}"] = (f"c_{finger}{n}.{s.lower()}",)
+    return controls
+
+
+# Rigify's limbs switch with IK_FK on their parent bone, Auto-Rig Pro's with ik_fk_switch on the IK
+# controls; both read 1.0 as FK.
+FAMILIES = (
+    ControlRig("Rigify", _rigify(), "root", {"IK_FK": 1.0}, ("DEF-", "ORG-"),
+               frozenset({"spine1", "spine2", *(f"{side}_{f}1" for side, _ in _SIDES for f in _FINGERS)})),
+    ControlRig("Auto-Rig Pro", _auto_rig_pro(), "c_traj", {"ik_fk_switch": 1.0}),
+)
+
+
+def find(bone_names: Collection[str], bone_map: Mapping[str, str]) -> ControlRig | None:
+    """The family whose main control of every required joint the armature has, cut down to the joints the
+    bone map drives and the controls the armature has; None for a plain skeleton (its bones are keyed)."""
+    for family in FAMILIES:
+        if all(family.controls[j][0] in bone_names for j in REQUIRED_JOINTS):
+            present = {j: tuple(c for c in cs if c in bone_names) for j, cs in family.controls.items()}
+            return replace(family, controls={j: cs for j, cs in present.items() if cs and j in bone_map})
+    return None
