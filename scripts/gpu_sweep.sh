@@ -32,6 +32,9 @@ for name in "${names[@]}"; do
     echo "== $name: $(tail -n 1 "$RUNS/$name/log.jsonl" 2>/dev/null || tail -n 3 "$RUNS/$name.train.log")"
 done
 
+# The weights come back first, so a validation cut short by the loan still leaves them.
+for name in "${names[@]}"; do cp "$RUNS/$name/dancenet.pt" "$OUT/$name.pt" 2>/dev/null; done
+
 # Each run (and the shipped weights, for the same run's reference) on the validation songs: foot model on,
 # the shipped sampling settings, two takes; one process each, side by side on the machine's cores.
 weights=(dancenet_core/weights/dancenet.pt)
@@ -44,6 +47,5 @@ for w in "${weights[@]}"; do
         >"$v.log" 2>&1 &
 done
 wait
-for name in "${names[@]}"; do cp "$RUNS/$name/dancenet.pt" "$OUT/$name.pt" 2>/dev/null; done
 tar czf "$OUT/sweep.tar.gz" --exclude='*.pt' --exclude=cache "$RUNS"
 cat "$RUNS"/validate/*/validation.md 2>/dev/null | grep -E '^\|' | sort -u

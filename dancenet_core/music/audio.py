@@ -19,12 +19,12 @@ from types import ModuleType
 from typing import IO, TYPE_CHECKING
 
 import numpy as np
-import soundfile as sf
 from scipy.signal import resample_poly
 
 from ..errors import DanceNetError
 
 if TYPE_CHECKING:
+    import soundfile as sf
     from madmom.audio.signal import Signal
 
 # madmom's onset, downbeat and chroma networks were trained on 44.1 kHz audio.
@@ -78,6 +78,8 @@ def load_audio(path: str | Path, sample_rate: int = MADMOM_SAMPLE_RATE) -> Audio
         raise DanceNetError(f"not an audio file but a folder or device: {path}")
     if path.stat().st_size == 0:
         raise DanceNetError(f"audio file is empty (0 bytes): {path}; export or download it again")
+    import soundfile as sf  # here, not at the top: training on a GPU machine imports this module without it
+
     try:
         with sf.SoundFile(str(path)) as f:
             source_rate, channels = int(f.samplerate), int(f.channels)

@@ -211,3 +211,17 @@ def test_a_blend_lies_between_its_ends_and_refuses_other_lineages() -> None:
     other = DanceNetBundle(_net(2, ["a"], residual=False, seed=2), norm, DEFAULT_SKELETON, {}, {})
     with pytest.raises(DanceNetError, match="different network settings"):
         blend(bundles[0], other, 0.5)
+
+
+@pytest.mark.parametrize("command", [["train", "dancenet"], ["validate"]])
+def test_training_commands_start_without_audio_libraries(command: list[str]) -> None:
+    """The GPU machine that trains from a pack has neither madmom nor soundfile: the training and validation
+    commands must not import them (a module-level soundfile import once stopped a whole GPU loan)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['soundfile'] = sys.modules['madmom'] = None\n"
+            "from dancenet_core.cli import main\n"
+            f"try:\n    main({command + ['--help']!r})\nexcept SystemExit as e:\n    sys.exit(e.code)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
