@@ -31,6 +31,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..atomic import write_text
+from ..beats import BAS_SMOOTH_S, kinematic_velocity, motion_beats
 from ..checkpoint import load_weights
 from ..data.build import with_mel_music
 from ..environment import default_data_dir
@@ -46,12 +47,9 @@ from ..skeleton import BODY_JOINTS
 from . import drift
 from .dance_features import geometric_features, kinetic_features, smpl24_positions
 from .metrics import (
-    BAS_SMOOTH_S,
     body_relative_segments,
     diversity,
     fid,
-    kinematic_velocity,
-    motion_beats,
     nearest_segment_distance,
     physical_foot_contact,
 )

@@ -12,12 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
-from scipy.ndimage import gaussian_filter1d
-from scipy.signal import argrelextrema
 from scipy.spatial.distance import pdist
 
+from ..beats import kinematic_velocity, motion_beats
+
 BAS_SIGMA_S = 3 / 60
-BAS_SMOOTH_S = 5 / 60
 HIT_WINDOW_S = 0.25
 
 # Foot contact and sliding, after Lodge's foot_skating: toe within 5 cm of the floor; sliding above 1 cm
@@ -34,18 +33,6 @@ PFC_FEET = (7, 10, 8, 11)  # left ankle, left foot, right ankle, right foot (SMP
 PFC_STILL_ACC = 1e-6  # m/s^2: a root never accelerating more than this is steady (rounding, not motion)
 FID_EPS = 1e-5  # Bailando's diagonal offset when the covariance product is singular
 NORM_EPS = 1e-10  # Bailando's guard on the real set's standard deviation
-
-
-def kinematic_velocity(positions: np.ndarray) -> np.ndarray:
-    """Mean over joints of each frame's joint displacement [T] (the first frame repeats the second)."""
-    v = np.linalg.norm(np.diff(positions, axis=0), axis=-1).mean(axis=1)
-    return np.concatenate([v[:1], v])
-
-
-def motion_beats(positions: np.ndarray, fps: float) -> np.ndarray:
-    """Dance beats: local minima of the smoothed kinematic velocity, as frame indices."""
-    v = gaussian_filter1d(kinematic_velocity(positions), BAS_SMOOTH_S * fps)
-    return argrelextrema(v, np.less)[0]
 
 
 def _beat_distances(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> np.ndarray:
