@@ -46,9 +46,9 @@ def synth_song(path: Path, seconds: float, bpm: float = 120.0, sr: int = 22050) 
 def use_torch_networks(weights: str | None) -> None:
     """Make `generate_dance` run the torch networks of the checkpoints (the path before the numpy runtime)."""
     from dancenet_core import generate
-    from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-    from dancenet_core.model.footfix import FootFixer
-    from dancenet_core.music.style_torch import StyleModel
+    from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from dancenet_core.nets.footfix import FootFixer
+    from dancenet_core.nets.style_torch import StyleModel
 
     bundle, style, fixer = DanceNetBundle.load(weights or DEFAULT_BUNDLE), StyleModel.load(), FootFixer.load()
     generate.load_bundle = lambda path=None: bundle
@@ -57,8 +57,9 @@ def use_torch_networks(weights: str | None) -> None:
 
 
 def sampler_speed(weights: str | None) -> dict:
-    from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-    from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning, naive_run
+    from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
+    from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from dancenet_core.nets.dancenet import naive_run
 
     model = DanceNetBundle.load(weights or DEFAULT_BUNDLE).model  # the naive way runs the torch model
     rf = model.cfg.receptive_field

@@ -23,7 +23,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from dancenet_core.model.variants import build_model  # noqa: E402
+from dancenet_core.nets.variants import build_model  # noqa: E402
 from dancenet_core.representation import FeatureLayout  # noqa: E402
 
 WINDOW = 200

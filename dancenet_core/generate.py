@@ -28,7 +28,7 @@ from .progress import Progress, StageProgress
 from .representation import FeatureLayout, decode, encode
 
 if TYPE_CHECKING:
-    from .model.bundle import DanceNetBundle
+    from .nets.bundle import DanceNetBundle
 
     # What generation runs: the runtime's arrays; training and evaluation pass their torch bundles too.
     Bundle = RuntimeBundle | DanceNetBundle
@@ -69,8 +69,8 @@ def load_bundle(path: str | None = None) -> RuntimeBundle:
     """The DanceNet weights as plain arrays: the shipped `.npz` by default; a training checkpoint (`.pt`, e.g.
     from `runs/`) is converted in memory, which needs torch."""
     if _is_checkpoint(path):
-        from .model.bundle import DanceNetBundle  # torch: only where checkpoints are trained
-        from .model.export import bundle_to_runtime
+        from .nets.bundle import DanceNetBundle  # torch: only where checkpoints are trained
+        from .nets.export import bundle_to_runtime
 
         return bundle_to_runtime(DanceNetBundle.load(path))
     return RuntimeBundle.load(path or DEFAULT_RUNTIME)
@@ -80,8 +80,8 @@ def load_bundle(path: str | None = None) -> RuntimeBundle:
 def load_style_model(path: str | None = None) -> RuntimeStyleModel:
     """The music style classifier: the shipped `.npz` by default; a checkpoint (`.pt`) as for `load_bundle`."""
     if _is_checkpoint(path):
-        from .model.export import style_to_runtime  # torch: only where checkpoints are trained
-        from .music.style_torch import StyleModel
+        from .nets.export import style_to_runtime  # torch: only where checkpoints are trained
+        from .nets.style_torch import StyleModel
 
         return style_to_runtime(StyleModel.load(path))
     return RuntimeStyleModel.load(path or STYLE_RUNTIME)

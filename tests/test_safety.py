@@ -27,9 +27,9 @@ from dancenet_core.checkpoint import load_weights
 from dancenet_core.cli import main as cli_main
 from dancenet_core.commands import analyze as analyze_command
 from dancenet_core.errors import DanceNetError
-from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-from dancenet_core.model.footfix import WEIGHTS as FOOTFIX_WEIGHTS
-from dancenet_core.model.footfix import FootFixer
+from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from dancenet_core.nets.footfix import WEIGHTS as FOOTFIX_WEIGHTS
+from dancenet_core.nets.footfix import FootFixer
 
 SHIPPED = sorted((Path(__file__).resolve().parents[1] / "dancenet_core" / "weights").glob("*.pt"))
 

@@ -6,7 +6,7 @@ import numpy as np
 import torch
 
 from dancenet_core.kinematics import fk_numpy
-from dancenet_core.model.kinematics_torch import fk_torch
+from dancenet_core.nets.kinematics_torch import fk_torch
 from dancenet_core.skeleton import (
     DEFAULT_SKELETON,
     END_EFFECTORS,

@@ -9,12 +9,12 @@ from pathlib import Path
 
 from ..atomic import write_text
 from ..checkpoint import load_weights
+from ..constants import DEFAULT_TEMPERATURE
 from ..environment import WEIGHTS_DIR, default_data_dir
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.test_split import evaluate_on_test_split
-from ..generate import DEFAULT_TEMPERATURE
-from ..model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-from ..model.footfix import WEIGHTS as FOOTFIX_WEIGHTS
+from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from ..nets.footfix import WEIGHTS as FOOTFIX_WEIGHTS
 from ..training.cards import dancenet_card, validation_sections, write_motion_style_card, write_style_card
 
 

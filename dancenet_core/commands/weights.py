@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..checkpoint import upgrade
 from ..environment import WEIGHTS_DIR
-from ..model.export import export_runtime
+from ..nets.export import export_runtime
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

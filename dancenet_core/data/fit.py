@@ -18,8 +18,8 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from ..kinematics import fk_numpy
-from ..model.kinematics_torch import fk_torch
 from ..motion import Motion
+from ..nets.kinematics_torch import fk_torch
 from ..skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, EndSite, Skeleton
 from .dance_with_melody import P
 

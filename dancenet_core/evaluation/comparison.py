@@ -33,13 +33,13 @@ from scipy.ndimage import gaussian_filter1d
 from ..atomic import write_text
 from ..beats import BAS_SMOOTH_S, kinematic_velocity, motion_beats
 from ..checkpoint import load_weights
+from ..constants import DEFAULT_TEMPERATURE
 from ..data.build import with_mel_music
 from ..environment import default_data_dir
 from ..errors import DanceNetError
-from ..generate import DEFAULT_TEMPERATURE
-from ..model.bundle import DEFAULT_BUNDLE, DanceNetBundle
-from ..model.variants import VARIANTS, music_features
 from ..motion import Motion
+from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from ..nets.variants import VARIANTS, music_features
 from ..plotting import pyplot
 from ..render import contact_sheet
 from ..representation import decode

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data.build import PairedSequence
-from ..model.bundle import DanceNetBundle
-from ..model.variants import sample_normalized
+from ..nets.bundle import DanceNetBundle
+from ..nets.variants import sample_normalized
 from ..plotting import pyplot
 
 BIN_S = 5.0

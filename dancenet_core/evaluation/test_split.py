@@ -15,11 +15,11 @@ from ..data.build import PairedSequence, build_dataset
 from ..data.dance_with_melody import read_manifest
 from ..data.pack import read_pack
 from ..data.split import load_split
-from ..generate import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
-from ..model.bundle import DanceNetBundle
-from ..model.variants import sample_normalized
+from ..engines.dancenet import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
 from ..motion import Motion
 from ..music.features import analyze_music
+from ..nets.bundle import DanceNetBundle
+from ..nets.variants import sample_normalized
 from ..representation import FeatureLayout, decode
 from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .metrics import (

@@ -1,4 +1,3 @@
-"""The trained networks, inference only: DanceNet and its cached sampler (`dancenet`, `sampler`), the
-weights bundle generation loads (`bundle`), the Foot Constraint Model (`footfix`), torch forward
-kinematics for it and for the skeleton fit (`kinematics_torch`), and the comparison's ablations and
-baselines (`variants`, `baselines`). Training them is `training/`."""
+"""What a Generate Dance runs, without torch: DanceNet's sizes (`config`), the networks in numpy
+(`numpy_nets`), the weights files generation loads (`runtime`) and the cached sampler (`sampler`). Their torch
+twins, for training and evaluation, are `nets/`."""

@@ -22,8 +22,6 @@ from scipy.special import expit
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 
 if TYPE_CHECKING:
-    from torch import nn
-
     from .config import DanceNetConfig
 
 Arrays = Mapping[str, np.ndarray]
@@ -48,12 +46,6 @@ def fold_batchnorm(state: Arrays, pairs: Sequence[tuple[str, str]], dtype: type 
         out[f"{conv}.weight"] = (w * scale.reshape(-1, *[1] * (w.ndim - 1))).astype(dtype)
         out[f"{conv}.bias"] = ((b - mean) * scale + shift).astype(dtype)
     return out
-
-
-def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
-    """A torch module's state dict as numpy arrays (BatchNorm's step counter left out: inference never reads it)."""
-    return {k: v.detach().cpu().numpy() for k, v in module.state_dict().items()
-            if not k.endswith("num_batches_tracked")}
 
 
 def linear(x: np.ndarray, state: Arrays, name: str) -> np.ndarray:

@@ -1,5 +1,6 @@
-"""Autoregressive generation: cached incremental inference (WaveNet-style per-layer queues) and the naive
-way (recompute the whole receptive field every frame, as the authors' release does) for comparison.
+"""Autoregressive generation: cached incremental inference (WaveNet-style per-layer queues). The naive way
+it is compared with (recompute the whole receptive field every frame, as the authors' release does) runs the
+torch network: `nets/dancenet.py`'s `naive_run`.
 
 The cached loop is compiled with numba: per frame it is a handful of small matrix-vector products, where
 torch's or numpy's per-call overhead (microseconds each, hundreds of calls per frame) would cost more
@@ -11,46 +12,44 @@ gives the same dance on any machine.
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numba
 import numpy as np
 
 from ..progress import Progress
+from .config import DanceNetConfig
 from .numpy_nets import NumpyDanceNet
 
-if TYPE_CHECKING:
-    from .dancenet import DanceNet
-
 CHUNK = 250  # frames per compiled call, between which progress is reported and cancellation checked
+WindowConditioning = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def as_numpy(model: DanceNet | NumpyDanceNet) -> NumpyDanceNet:
+class TorchDanceNet(Protocol):
+    """DanceNet's torch network (`nets/dancenet.py`), which training and evaluation pass, as the sampler uses
+    it: described here rather than imported, so that the runtime never imports torch."""
+
+    cfg: DanceNetConfig
+
+    def to_numpy(self) -> NumpyDanceNet: ...
+
+    def exact_conditioner(self) -> WindowConditioning: ...
+
+
+def as_numpy(model: TorchDanceNet | NumpyDanceNet) -> NumpyDanceNet:
     """The network as arrays: a runtime one as it is, a torch one (training, evaluation) converted."""
     return model if isinstance(model, NumpyDanceNet) else model.to_numpy()
 
 
-def _window_conditioner(model: DanceNet | NumpyDanceNet) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+def _window_conditioner(model: TorchDanceNet | NumpyDanceNet) -> WindowConditioning:
     """Conditioning [B, T, C] of windows of music [B, T, F] and styles [B] in float64 (why: see
     `NumpyDanceNet.conditioning`), by the numpy runtime or by a float64 copy of the torch model."""
-    if isinstance(model, NumpyDanceNet):
-        return model.conditioning
-    import torch  # a torch model: training and evaluation, where torch is installed
-
-    exact = copy.deepcopy(model).double().eval()
-
-    def conditioning(music: np.ndarray, style: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            code = exact.conditioning(torch.from_numpy(music).double(), torch.from_numpy(style))
-        return code.transpose(1, 2).numpy()
-
-    return conditioning
+    return model.conditioning if isinstance(model, NumpyDanceNet) else model.exact_conditioner()
 
 
-def music_conditioning(model: DanceNet | NumpyDanceNet, music: np.ndarray, style: int) -> np.ndarray:
+def music_conditioning(model: TorchDanceNet | NumpyDanceNet, music: np.ndarray, style: int) -> np.ndarray:
     """Conditioning [T, C] for a whole song: 8-s windows overlapping by 2 s, cross-faded into one code.
 
     Windows keep the encoder on the length it was trained on, so any song length works. The code is computed
@@ -168,7 +167,7 @@ def _generate(  # a compiled kernel takes its arrays flat
 class CachedSampler:
     """One step per frame: each layer keeps a queue of its inputs' contributions to frame t + dilation."""
 
-    def __init__(self, model: DanceNet | NumpyDanceNet) -> None:
+    def __init__(self, model: TorchDanceNet | NumpyDanceNet) -> None:
         net = as_numpy(model)
         cfg = net.cfg
         self.cfg = cfg
@@ -266,19 +265,3 @@ class CachedSampler:
                 raise InterruptedError("generation cancelled")
         return frames.transpose(1, 0, 2), (outputs.transpose(1, 0, 2) if record_outputs else None)
 
-
-def naive_run(model: DanceNet, first: np.ndarray, cond: np.ndarray, teacher: np.ndarray) -> np.ndarray:
-    """The reference way: for each new frame, run the full stack over the last receptive-field frames.
-
-    Feeds `teacher` frames [B, T, D] (sampling does not change the cost); returns the outputs [B, T, O].
-    """
-    import torch  # the torch model itself: a benchmark and test reference, never run by generation
-
-    rf = model.cfg.receptive_field
-    bsz, t_total = len(first), len(cond)
-    cond_t = torch.tensor(cond, dtype=torch.float32).T.unsqueeze(0).expand(bsz, -1, -1)
-    frames = torch.tensor(teacher, dtype=torch.float32)
-    with torch.no_grad():
-        outs = [model.forward_frames(frames[:, max(0, t - rf) : t], cond_t[..., max(0, t - rf) + 1 : t + 1])[:, -1]
-                for t in range(1, t_total)]
-    return torch.stack([torch.zeros_like(outs[0])] + outs, 1).numpy()

@@ -3,11 +3,12 @@ dilated residual layers conditioned on music and style, and a decoder to a Gauss
 foot-contact logits.
 
 `DanceNet.forward` is the teacher-forced pass used for training; `model/sampler.py` generates frame by
-frame with cached per-layer queues.
+frame with cached per-layer queues, `naive_run` (here) the way it is compared with.
 """
 
 from __future__ import annotations
 
+import copy
 from typing import Protocol
 
 import numpy as np
@@ -15,8 +16,15 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from .config import DanceNetConfig
-from .numpy_nets import NumpyDanceNet, fold_batchnorm, numpy_state
+from ..model.config import DanceNetConfig
+from ..model.numpy_nets import NumpyDanceNet, fold_batchnorm
+from ..model.sampler import WindowConditioning
+
+
+def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:
+    """A torch module's state dict as numpy arrays (BatchNorm's step counter left out: inference never reads it)."""
+    return {k: v.detach().cpu().numpy() for k, v in module.state_dict().items()
+            if not k.endswith("num_batches_tracked")}
 
 
 class MusicEncoder(nn.Module):
@@ -150,6 +158,18 @@ class DanceNet(nn.Module):
                                    np.float64)
         return NumpyDanceNet(self.cfg, state)
 
+    def exact_conditioner(self) -> WindowConditioning:
+        """Conditioning [B, T, C] of windows of music [B, T, F] and styles [B] as arrays, by a float64 copy of
+        this network (why float64: `NumpyDanceNet.conditioning`): `sampler.music_conditioning`'s for torch."""
+        exact = copy.deepcopy(self).double().eval()
+
+        def conditioning(music: np.ndarray, style: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                code = exact.conditioning(torch.from_numpy(music).double(), torch.from_numpy(style))
+            return code.transpose(1, 2).numpy()
+
+        return conditioning
+
     def split(self, out: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         return split_outputs(out, self.cfg)
 
@@ -205,3 +225,19 @@ def dancenet_loss(
         return mse + contact_weight * bce, {"mse": float(mse.detach()), "bce": float(bce.detach())}
     nll = mixture_nll(logits, mu, log_sigma, target[..., :d], mask).mean()
     return nll + contact_weight * bce, {"nll": float(nll.detach()), "bce": float(bce.detach())}
+
+
+def naive_run(model: DanceNet, first: np.ndarray, cond: np.ndarray, teacher: np.ndarray) -> np.ndarray:
+    """The reference way: for each new frame, run the full stack over the last receptive-field frames.
+
+    Feeds `teacher` frames [B, T, D] (sampling does not change the cost); returns the outputs [B, T, O].
+    A benchmark and test reference for the cached sampler, never run by generation.
+    """
+    rf = model.cfg.receptive_field
+    bsz, t_total = len(first), len(cond)
+    cond_t = torch.tensor(cond, dtype=torch.float32).T.unsqueeze(0).expand(bsz, -1, -1)
+    frames = torch.tensor(teacher, dtype=torch.float32)
+    with torch.no_grad():
+        outs = [model.forward_frames(frames[:, max(0, t - rf) : t], cond_t[..., max(0, t - rf) + 1 : t + 1])[:, -1]
+                for t in range(1, t_total)]
+    return torch.stack([torch.zeros_like(outs[0])] + outs, 1).numpy()

@@ -10,12 +10,12 @@ from pathlib import Path
 
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError
-from ..music.style_torch import StyleModel
+from ..model.numpy_nets import NumpyFootNet, NumpyStyleNet, fold_batchnorm
+from ..model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
 from .bundle import DanceNetBundle
-from .dancenet import DanceNet
+from .dancenet import DanceNet, numpy_state
 from .footfix import FootFixer
-from .numpy_nets import NumpyFootNet, NumpyStyleNet, fold_batchnorm, numpy_state
-from .runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
+from .style_torch import StyleModel
 
 
 def bundle_to_runtime(bundle: DanceNetBundle) -> RuntimeBundle:

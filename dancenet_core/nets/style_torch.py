@@ -11,7 +11,7 @@ import torch
 from torch import nn
 
 from ..checkpoint import read_checkpoint, save_weights
-from .style import (
+from ..music.style import (
     ARCHS,
     CHECKPOINT_FORMAT,
     DEFAULT_WEIGHTS,

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 from torch import nn
 
+from ..model.sampler import CachedSampler, Sampling, music_conditioning
 from ..music.features import MEL_BANDS, N_FEATURES
 from .baselines import KINDS, BaselineConfig, build_baseline
 from .dancenet import DanceNet, DanceNetConfig
-from .sampler import CachedSampler, Sampling, music_conditioning
 
 VARIANTS: dict[str, str] = {
     "dancenet": "DanceNet",

@@ -18,8 +18,8 @@ from ..data.build import build_dataset
 from ..data.pack import load_pack
 from ..environment import default_data_dir
 from ..errors import DanceNetError
-from ..model.bundle import DanceNetBundle
-from ..model.export import bundle_to_runtime
+from ..nets.bundle import DanceNetBundle
+from ..nets.export import bundle_to_runtime
 from ..representation import FeatureLayout
 from .dancenet import held_out_windows, windows_loss
 

@@ -27,10 +27,10 @@ from ..data.pack import load_pack
 from ..data.split import load_split
 from ..data.windows import Batch, WindowSampler
 from ..environment import default_data_dir
-from ..model.bundle import DanceNetBundle
-from ..model.dancenet import DanceNet
-from ..model.export import bundle_to_runtime
-from ..model.variants import build_model, music_features
+from ..nets.bundle import DanceNetBundle
+from ..nets.dancenet import DanceNet
+from ..nets.export import bundle_to_runtime
+from ..nets.variants import build_model, music_features
 from ..representation import FeatureLayout, Normalizer
 from .configs import TrainSettings
 from .tensor_windows import TensorWindows

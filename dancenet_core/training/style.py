@@ -17,7 +17,6 @@ from ..data.split import SPLIT_FILE, load_or_make_split, validation_songs
 from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
-from ..model.export import style_to_runtime
 from ..music.features import CHROMA_COLS, FPS, N_FEATURES, ONSET_COL, MusicAnalysis, analyze_music
 from ..music.style import (
     BASELINE_WEIGHTS,
@@ -29,7 +28,8 @@ from ..music.style import (
     WINDOW_S,
     draw_rhythm,
 )
-from ..music.style_torch import StyleModel, build_net
+from ..nets.export import style_to_runtime
+from ..nets.style_torch import StyleModel, build_net
 from ..series import stretch_frames
 from .configs import StyleSettings
 

@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segments
-from dancenet_core.model.variants import VARIANTS, build_model, sample_normalized
 from dancenet_core.motion import Motion
+from dancenet_core.nets.variants import VARIANTS, build_model, sample_normalized
 from dancenet_core.representation import FeatureLayout
 
 LAYOUT = FeatureLayout(55, 5)

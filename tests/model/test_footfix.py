@@ -6,9 +6,9 @@ import numpy as np
 import torch
 
 from dancenet_core.evaluation.metrics import foot_sliding, jitter, longest_freeze_s
-from dancenet_core.model.footfix import WEIGHTS, FootChannels, FootConstraintModel, FootFixer, ToeKinematics
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import BEAT_COL, DOWNBEAT_COL, ONSET_COL
+from dancenet_core.nets.footfix import WEIGHTS, FootChannels, FootConstraintModel, FootFixer, ToeKinematics
 from dancenet_core.representation import FeatureLayout, Normalizer, decode, encode
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, LOWER_BODY, TOE_ENDS, Skeleton
 from dancenet_core.training.footfix import ContactTraining, LstmBaseline, simulate_sliding, train_foot_model
@@ -206,8 +206,8 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
     0.93 of before, toes at most 0.1 cm up, contact at least 0.99 of before, still stretches grown by at most
     0.04 s (0.24 s with the earlier model)."""
     from dancenet_core.generate import DEFAULT_TEMPERATURE, sample_dance
-    from dancenet_core.model.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.model.sampler import Sampling, music_conditioning
+    from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 
     bundle, fixer = DanceNetBundle.load(DEFAULT_BUNDLE), FootFixer.load(WEIGHTS)
     before, after = [], []

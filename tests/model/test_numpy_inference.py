@@ -15,18 +15,18 @@ import torch
 
 from dancenet_core import generate
 from dancenet_core.errors import DanceNetError
-from dancenet_core.model.bundle import DanceNetBundle
 from dancenet_core.model.config import DanceNetConfig
-from dancenet_core.model.dancenet import DanceNet
-from dancenet_core.model.export import bundle_to_runtime, fixer_to_runtime, style_to_runtime
-from dancenet_core.model.footfix import FootFixer
 from dancenet_core.model.numpy_nets import toe_heights
 from dancenet_core.model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
 from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, MusicAnalysis, analyze_music, music_at_frames
 from dancenet_core.music.style import N_INPUTS, classifier_input
-from dancenet_core.music.style_torch import StyleModel, build_net
+from dancenet_core.nets.bundle import DanceNetBundle
+from dancenet_core.nets.dancenet import DanceNet
+from dancenet_core.nets.export import bundle_to_runtime, fixer_to_runtime, style_to_runtime
+from dancenet_core.nets.footfix import FootFixer
+from dancenet_core.nets.style_torch import StyleModel, build_net
 from dancenet_core.representation import Normalizer, encode
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
@@ -107,7 +107,7 @@ def test_any_dancenet_config_runs_from_arrays(options: dict, tmp_path: Path) -> 
 
 def test_shipped_runtime_files_are_exports_of_the_checkpoints(shipped: tuple) -> None:
     """What generation loads is what training made: re-export the shipped checkpoints and compare (a stale
-    .npz after new weights fails here: run `python -m dancenet_core.model.export`)."""
+    .npz after new weights fails here: run `dancenet weights export`)."""
     bundle, style, fixer = shipped
     runtime = RuntimeBundle.load()
     assert runtime.model.cfg == bundle.model.cfg

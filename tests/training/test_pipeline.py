@@ -13,8 +13,8 @@ import soundfile as sf
 from dancenet_core.cli import main as cli_main
 from dancenet_core.data.build import PairedSequence
 from dancenet_core.generate import generate_dance
-from dancenet_core.model.bundle import DanceNetBundle
 from dancenet_core.motion import Motion
+from dancenet_core.nets.bundle import DanceNetBundle
 from dancenet_core.representation import encode
 from dancenet_core.skeleton import BODY_JOINTS
 from dancenet_core.training.configs import TrainSettings

@@ -14,8 +14,8 @@ from dancenet_core.data.build import PairedSequence
 from dancenet_core.data.pack import load_pack, save_pack
 from dancenet_core.data.windows import WindowSampler
 from dancenet_core.errors import DanceNetError
-from dancenet_core.model.bundle import DanceNetBundle
-from dancenet_core.model.dancenet import DanceNet, DanceNetConfig
+from dancenet_core.nets.bundle import DanceNetBundle
+from dancenet_core.nets.dancenet import DanceNet, DanceNetConfig
 from dancenet_core.representation import FeatureLayout, Normalizer
 from dancenet_core.skeleton import DEFAULT_SKELETON
 from dancenet_core.training.blend import blend
