@@ -45,15 +45,15 @@ def synth_song(path: Path, seconds: float, bpm: float = 120.0, sr: int = 22050) 
 
 def use_torch_networks(weights: str | None) -> None:
     """Make `generate_dance` run the torch networks of the checkpoints (the path before the numpy runtime)."""
-    from dancenet_core import generate
+    from dancenet_core.engines import dancenet, styles
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.nets.footfix import FootFixer
     from dancenet_core.nets.style_torch import StyleModel
 
     bundle, style, fixer = DanceNetBundle.load(weights or DEFAULT_BUNDLE), StyleModel.load(), FootFixer.load()
-    generate.load_bundle = lambda path=None: bundle
-    generate.load_style_model = lambda path=None: style
-    generate.foot_fixer = lambda: fixer
+    dancenet.load_bundle = lambda path=None: bundle
+    styles.load_style_model = lambda path=None: style
+    dancenet.foot_fixer = lambda: fixer
 
 
 def sampler_speed(weights: str | None) -> dict:
@@ -65,7 +65,7 @@ def sampler_speed(weights: str | None) -> dict:
     rf = model.cfg.receptive_field
     rng = np.random.default_rng(0)
     frames = 3000
-    cond = music_conditioning(model, rng.normal(size=(frames, 15)).astype(np.float32), 0)
+    cond = music_conditioning(model, rng.normal(size=(frames, model.cfg.music_dim)).astype(np.float32), 0)
     first = np.zeros((1, model.cfg.motion_dim), np.float32)
     sampler = CachedSampler(model)
     sampler.run(first, cond[:20], Sampling(0.3, rng))  # compile (numba caches it on disk)
@@ -90,14 +90,15 @@ def three_minute_song(weights: str | None, workdir: Path) -> dict:
     with the analysis cached (best of three): its first dance (imports and weights included, as a `dancenet
     generate` run) and its second (as the add-on's later clicks)."""
     from dancenet_core.generate import generate_dance
+    from dancenet_core.request import DanceRequest
 
     song = workdir / "three_minutes.wav"
     synth_song(song, 180.0)
     t = time.perf_counter()
-    generate_dance(song, weights=weights, footfix=True)  # cold: analysis and first compile
+    generate_dance(DanceRequest(song, weights=weights, footfix=True))  # cold: analysis and first compile
     cold = time.perf_counter() - t
     t = time.perf_counter()
-    result = generate_dance(song, weights=weights, footfix=True, seed=1)
+    result = generate_dance(DanceRequest(song, weights=weights, footfix=True, seed=1))
     warm = time.perf_counter() - t
 
     def fresh(torch_networks: bool) -> dict:
@@ -106,10 +107,11 @@ def three_minute_song(weights: str | None, workdir: Path) -> dict:
             "t = time.perf_counter()\n"
             + (f"generation.use_torch_networks({weights!r})\n" if torch_networks else "")
             + f"""from dancenet_core.generate import generate_dance
-generate_dance({str(song)!r}, weights={weights!r}, footfix=True)
+from dancenet_core.request import DanceRequest
+generate_dance(DanceRequest({str(song)!r}, weights={weights!r}, footfix=True))
 first = time.perf_counter() - t
 t = time.perf_counter()
-r = generate_dance({str(song)!r}, weights={weights!r}, footfix=True, seed=1)
+r = generate_dance(DanceRequest({str(song)!r}, weights={weights!r}, footfix=True, seed=1))
 print(json.dumps({{"first_s": first, "second_s": time.perf_counter() - t, "stages": r.timings}}))
 """))
 
@@ -148,7 +150,8 @@ def ten_minute_memory(weights: str | None, workdir: Path) -> dict:
         out = in_fresh_process(
             (f"generation.use_torch_networks({weights!r})\n" if torch_networks else "")
             + "from dancenet_core.generate import generate_dance\n"
-            f"r = generate_dance({str(song)!r}, weights={weights!r})\n"
+            "from dancenet_core.request import DanceRequest\n"
+            f"r = generate_dance(DanceRequest({str(song)!r}, weights={weights!r}))\n"
             "hwm = next(line for line in open('/proc/self/status') if line.startswith('VmHWM:')).split()[1]\n"
             "print(r.motions[0].num_frames, hwm)\n", env).split()
         return int(out[0]), int(out[1]), time.perf_counter() - t

@@ -496,7 +496,7 @@ def part_of_song(scene: bpy.types.Scene, strip: bpy.types.Strip | None, song_fra
     """(start, end) seconds of the song to dance: what the strip lets be heard (its trim and place on the
     timeline), within the panel's frames when "Part of the Song" is on. The end is None for a song with
     no strip yet and no chosen end (the whole song)."""
-    from dancenet_core.generate import MIN_PART_S  # late: loading the core's generator costs a second
+    from dancenet_core.constants import MIN_PART_S
 
     props = scene.dancenet
     fps = scene.render.fps / scene.render.fps_base

@@ -8,3 +8,5 @@ imports nothing, so the add-on reads them when it registers without loading the 
 DEFAULT_TEMPERATURE = 1.0
 # Above this the mixture's sigma swamps the dance (temperature 1e9 put the dancer 7e7 m away).
 MAX_TEMPERATURE = 3.0
+# The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).
+MIN_PART_S = 1.0

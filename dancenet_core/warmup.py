@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .constants import DEFAULT_TEMPERATURE
-from .generate import foot_fixer, load_bundle, load_style_model, sample_dance
+from .engines.dancenet import foot_fixer, load_bundle, sample_dance
+from .engines.styles import load_style_model
 from .model.sampler import Sampling, music_conditioning
 from .music import madmom_dbn, madmom_nets
 from .music.audio import MADMOM_SAMPLE_RATE, Audio

@@ -62,7 +62,7 @@ def test_fps_outside_the_offered_rates_is_one_line(song: Path, tmp_path: Path, c
 def test_part_of_the_song_dances_to_the_music_of_that_part(song: Path, tmp_path: Path, monkeypatch) -> None:
     import json
 
-    from dancenet_core import generate as core
+    from dancenet_core.engines import dancenet as core
     from dancenet_core.music.features import FPS, analyze_music, music_at_frames
 
     heard = []
@@ -168,7 +168,7 @@ def test_continue_keeps_the_dance_and_joins_without_a_pop(song: Path, tmp_path: 
 @pytest.mark.parametrize(("args", "message"), [
     (["--at", "3"], "--at goes with --continue"),
     (["--continue", "KEPT"], "--continue needs --at"),
-    (["--continue", "KEPT", "--at", "40"], "--at must be within the kept dance"),
+    (["--continue", "KEPT", "--at", "40"], "must start within the kept dance"),
     (["--continue", "SONG", "--at", "2"], "clicks.wav:1: expected"),
 ])
 def test_bad_continue_is_one_line(song: Path, tmp_path: Path, capsys, args, message) -> None:

@@ -28,6 +28,7 @@ from dancenet_core.errors import DanceNetError
 from dancenet_core.generate import GenerationResult
 from dancenet_core.motion import Motion
 from dancenet_core.outputs import MAX_STEM_BYTES, safe_stem
+from dancenet_core.request import DanceRequest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,10 +47,10 @@ def _dance(seed: int) -> Motion:
     return motion
 
 
-def _fake_generate(song: Any, **kwargs: Any) -> GenerationResult:
-    motion = _dance(kwargs["seed"])
+def _fake_generate(request: DanceRequest, **_kwargs: Any) -> GenerationResult:
+    motion = _dance(request.seed)
     return GenerationResult([motion], np.zeros(0), np.zeros(0), 120.0, motion.duration, "waltz", {},
-                            start_s=kwargs["start_s"])
+                            start_s=request.start_s)
 
 
 @pytest.fixture
@@ -78,12 +79,12 @@ import test_outputs
 from dancenet_core.commands import generate as command
 from dancenet_core.cli import main
 ready, n = Path(sys.argv[1]), int(sys.argv[2])
-def fake(song, **kwargs):
-    (ready / str(kwargs['seed'])).touch()
+def fake(request, **kwargs):
+    (ready / str(request.seed)).touch()
     deadline = time.monotonic() + 120
     while len(list(ready.iterdir())) < n and time.monotonic() < deadline:
         time.sleep(0.01)
-    return test_outputs._fake_generate(song, **kwargs)
+    return test_outputs._fake_generate(request, **kwargs)
 command.generate_dance = fake
 sys.exit(main(sys.argv[3:]))
 """
@@ -276,9 +277,9 @@ def test_a_losing_run_keeps_the_winners_files_and_leaves_nothing(tmp_path: Path,
     """In one process: a run whose outputs appear while it dances ends with one line, the others' files kept."""
     song, out = _song(tmp_path / "song.wav"), tmp_path / "out"
 
-    def meanwhile(song: Any, **kwargs: Any) -> GenerationResult:
+    def meanwhile(request: DanceRequest, **kwargs: Any) -> GenerationResult:
         (out / "song.npz").write_text("another run's")
-        return _fake_generate(song, **kwargs)
+        return _fake_generate(request, **kwargs)
 
     monkeypatch.setattr(generate_command, "generate_dance", meanwhile)
     t = time.perf_counter()

@@ -124,7 +124,7 @@ def test_generation_post_processing_keeps_the_travel() -> None:
     least 97% of the path the features describe: nothing on the way shrinks the root's deltas."""
     from types import SimpleNamespace
 
-    from dancenet_core.generate import finish_frames
+    from dancenet_core.engines.dancenet import finish_frames
 
     m = _synthetic()
     feats = encode(m)

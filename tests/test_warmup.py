@@ -22,7 +22,8 @@ print("CANCELLED", [len(k.signatures) for k in kernels])
 warm_up()
 print("WARM", [len(k.signatures) for k in kernels])
 from dancenet_core.generate import generate_dance
-generate_dance(sys.argv[1], end_s=4.0)
+from dancenet_core.request import DanceRequest
+generate_dance(DanceRequest(sys.argv[1], end_s=4.0))
 print("AFTER", [len(k.signatures) for k in kernels])
 """
 

@@ -11,8 +11,8 @@ import soundfile as sf
 from tqdm import tqdm
 
 from ..atomic import write_text
+from ..engines.styles import load_style_model
 from ..errors import DanceNetError
-from ..generate import load_style_model
 from ..music.audio import load_audio
 from ..music.features import analyze_music
 

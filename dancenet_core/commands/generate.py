@@ -12,41 +12,25 @@ from tqdm import tqdm
 
 from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
-from ..continuation import keep_original
 from ..errors import DanceNetError
-from ..generate import DEFAULT_TEMPERATURE, GenerationResult, generate_dance
+from ..generate import GenerationResult, generate_dance, shape_takes
 from ..model.runtime import DEFAULT_RUNTIME, META
-from ..motion import FRAME_RATES, Motion
 from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..render import render_motion
-from ..rootmotion import ROOT_MODES, apply_mode, read_dance_bvh, write_root_bone_bvh
+from ..request import DanceRequest, add_options, options_from
+from ..rootmotion import read_dance_bvh, write_root_bone_bvh
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (created if missing)")
-    p.add_argument("--style", default="auto",
-                   help=f"auto (the music's style) or a style the model knows; the shipped one: {_shipped_styles()}")
-    p.add_argument("--seed", type=int, default=0, help="same seed, same dance")
-    p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
-                   help=f"variety of the dance, 0 = most likely (default {DEFAULT_TEMPERATURE})")
-    p.add_argument("--takes", type=int, default=1, help="number of different dances to generate")
-    p.add_argument("--fps", type=int, choices=FRAME_RATES, default=None,
-                   help="frame rate of the files (slerp-resampled; default: the model's own 25)")
-    p.add_argument("--root-motion", choices=ROOT_MODES, default="travel",
-                   help="travel (as danced), in-place (no horizontal path, heading kept) or root-bone (a 'root' "
-                        "joint on the floor carries path and heading; the .npz keeps the dance as danced)")
-    p.add_argument("--start", type=float, default=0.0, metavar="SECONDS",
-                   help="dance from this many seconds into the song (default: its beginning)")
-    p.add_argument("--end", type=float, default=None, metavar="SECONDS",
-                   help="dance up to this many seconds into the song (default: its end)")
+    add_options(p, {"style": f"auto (the music's style) or a style the model knows; the shipped one: "
+                             f"{_shipped_styles()}"})
     p.add_argument("--continue", dest="continue_from", type=Path, default=None, metavar="BVH",
                    help="keep this dance (a BVH from `dancenet generate` for the same song and --start) up to "
                         "--at and dance the rest anew after it")
     p.add_argument("--at", type=float, default=None, metavar="SECONDS",
                    help="with --continue: seconds into the kept dance where the new dancing starts")
-    p.add_argument("--no-footfix", action="store_true", help="skip the foot-sliding clean-up")
-    p.add_argument("--weights", type=Path, default=None, help="a DanceNet weights file (default: shipped)")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
     p.add_argument("--overwrite", action="store_true", help="replace outputs already in the folder")
     p.set_defaults(handler=run)
@@ -72,23 +56,25 @@ def _outputs(args: argparse.Namespace, stem: str) -> list[Path]:
     return [args.out / f"{n}{s}" for n in _names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
 
 
-def _kept_dance(args: argparse.Namespace) -> Motion | None:
-    """The dance to continue, read and checked against --at before any music is analysed."""
+def _request(args: argparse.Namespace) -> DanceRequest:
+    """The request the options make, with the dance to continue read, checked before the output folder is made
+    (generate_dance checks it again, with its engine, before any music is analysed)."""
+    kept = None
     if args.continue_from is None:
         if args.at is not None:
             raise DanceNetError("--at goes with --continue BVH (the dance to continue)")
-        return None
-    if args.at is None:
+    elif args.at is None:
         raise DanceNetError("--continue needs --at SECONDS: where in the kept dance the new dancing starts")
-    kept = read_dance_bvh(args.continue_from)
-    if not 0 < args.at <= kept.duration:
-        raise DanceNetError(f"--at must be within the kept dance (0 to {kept.duration:.2f} s), got {args.at}")
-    return kept
+    else:
+        kept = read_dance_bvh(args.continue_from)
+    request = DanceRequest(args.song, **options_from(args), continue_from=kept, at_s=args.at or 0.0)
+    request.check()
+    return request
 
 
 def run(args: argparse.Namespace) -> int:
     stem = safe_stem(args.song)
-    kept = _kept_dance(args)
+    request = _request(args)
     check_folder_writable(args.out)
     remove_leftovers(args.out)
     outputs = _outputs(args, stem)
@@ -108,19 +94,10 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     try:
-        result = generate_dance(args.song, style=args.style, seed=args.seed, temperature=args.temperature,
-                                takes=args.takes, footfix=not args.no_footfix, progress=progress,
-                                weights=str(args.weights) if args.weights else None, start_s=args.start,
-                                end_s=args.end, continue_from=kept, at_s=args.at or 0.0)
+        result = generate_dance(request, progress=progress)
     finally:
         bar.close()
-    if kept is not None:  # the kept frames as they were, at the kept dance's rate (or --fps)
-        join = round(args.at * result.motions[0].fps) / result.motions[0].fps
-        kept = kept.resampled(args.fps or kept.fps)
-        result.motions = [keep_original(kept, m, join) for m in result.motions]
-    elif args.fps is not None:
-        result.motions = [m.resampled(args.fps) for m in result.motions]
-    result.motions = [apply_mode(m, args.root_motion) for m in result.motions]
+    result.motions = shape_takes(result.motions, request)
     with claimed_outputs(outputs, args.overwrite) as temp:  # this run's files appear together, or none
         summary = _write(args, stem, result, temp, t0)
     print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
@@ -158,7 +135,7 @@ def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: 
         "takes": len(result.motions),
         "seed": args.seed,
         "temperature": args.temperature,
-        "footfix": not args.no_footfix,
+        "footfix": args.footfix,
         "root_motion": args.root_motion,
         "continued_from": str(args.continue_from) if args.continue_from else None,
         "at_s": args.at,

@@ -15,7 +15,7 @@ from ..data.build import PairedSequence, build_dataset
 from ..data.dance_with_melody import read_manifest
 from ..data.pack import read_pack
 from ..data.split import load_split
-from ..generate import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
+from ..engines.dancenet import OUTPUT_SMOOTHING_FRAMES, finish_frames, foot_fixer
 from ..motion import Motion
 from ..music.features import analyze_music
 from ..nets.bundle import DanceNetBundle

@@ -35,11 +35,12 @@ import torch
 from scipy.ndimage import gaussian_filter1d
 from torch import nn
 
+from ..constants import DEFAULT_TEMPERATURE
 from ..data.build import build_dataset
 from ..data.split import load_split
+from ..engines.dancenet import sample_dance
 from ..environment import default_data_dir
 from ..evaluation.metrics import CONTACT_TOE_M
-from ..generate import DEFAULT_TEMPERATURE, sample_dance
 from ..model.sampler import Sampling, music_conditioning
 from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 from ..nets.export import fixer_to_runtime

@@ -205,7 +205,8 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
     before over 16 dances (issue 26 item 12 saw +-0.1 between sets of 8 with the earlier model), jitter at most
     0.93 of before, toes at most 0.1 cm up, contact at least 0.99 of before, still stretches grown by at most
     0.04 s (0.24 s with the earlier model)."""
-    from dancenet_core.generate import DEFAULT_TEMPERATURE, sample_dance
+    from dancenet_core.constants import DEFAULT_TEMPERATURE
+    from dancenet_core.engines.dancenet import sample_dance
     from dancenet_core.model.sampler import Sampling, music_conditioning
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 

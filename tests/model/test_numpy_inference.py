@@ -14,6 +14,8 @@ import pytest
 import torch
 
 from dancenet_core import generate
+from dancenet_core.engines import dancenet as dancenet_engine
+from dancenet_core.engines import styles
 from dancenet_core.errors import DanceNetError
 from dancenet_core.model.config import DanceNetConfig
 from dancenet_core.model.numpy_nets import toe_heights
@@ -28,6 +30,7 @@ from dancenet_core.nets.export import bundle_to_runtime, fixer_to_runtime, style
 from dancenet_core.nets.footfix import FootFixer
 from dancenet_core.nets.style_torch import StyleModel, build_net
 from dancenet_core.representation import Normalizer, encode
+from dancenet_core.request import DanceRequest
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
 REPO = Path(__file__).resolve().parents[2]
@@ -176,7 +179,7 @@ def test_foot_model_and_floor_guard(shipped: tuple, analysis: MusicAnalysis) -> 
     ch = fixer.ch
     rng = np.random.default_rng(4)
     random = fixer.norm.denormalize(rng.normal(size=(300, len(fixer.norm.mean))).astype(np.float32))
-    dance = generate.generate_dance(SONG, seed=5, footfix=False, end_s=20.0)
+    dance = generate.generate_dance(DanceRequest(SONG, seed=5, footfix=False, end_s=20.0))
     real = np.concatenate([encode(m) for m in dance.motions])
     for feats in (random, real):
         x = fixer.norm.normalize(feats)
@@ -193,13 +196,13 @@ def test_foot_model_and_floor_guard(shipped: tuple, analysis: MusicAnalysis) -> 
 def torch_path(monkeypatch: pytest.MonkeyPatch, shipped: tuple) -> None:
     """generate_dance as before this runtime: the torch networks of the shipped checkpoints."""
     bundle, style, fixer = shipped
-    monkeypatch.setattr(generate, "load_bundle", lambda path=None: bundle)
-    monkeypatch.setattr(generate, "load_style_model", lambda path=None: style)
-    monkeypatch.setattr(generate, "foot_fixer", lambda: fixer)
+    monkeypatch.setattr(dancenet_engine, "load_bundle", lambda path=None: bundle)
+    monkeypatch.setattr(styles, "load_style_model", lambda path=None: style)
+    monkeypatch.setattr(dancenet_engine, "foot_fixer", lambda: fixer)
 
 
 def _dances(**kwargs: object) -> generate.GenerationResult:
-    return generate.generate_dance(SONG, seed=11, takes=2, **kwargs)
+    return generate.generate_dance(DanceRequest(SONG, seed=11, takes=2, **kwargs))
 
 
 def test_generate_dance_equals_the_torch_path(request: pytest.FixtureRequest) -> None:
@@ -227,8 +230,9 @@ def test_generation_imports_no_torch(tmp_path: Path) -> None:
         "import sys\n"
         "from dancenet_core import kinematics, motion, rootmotion, bvh\n"
         "from dancenet_core.generate import available_styles, generate_dance\n"
-        f"r = generate_dance({str(SONG)!r}, seed=1, end_s=12.0)\n"
-        f"generate_dance({str(SONG)!r}, seed=2, end_s=12.0, continue_from=r.motions[0], at_s=4.0)\n"
+        "from dancenet_core.request import DanceRequest\n"
+        f"r = generate_dance(DanceRequest({str(SONG)!r}, seed=1, end_s=12.0))\n"
+        f"generate_dance(DanceRequest({str(SONG)!r}, seed=2, end_s=12.0, continue_from=r.motions[0], at_s=4.0))\n"
         "assert available_styles()\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] == 'torch')[:3])\n"
     )

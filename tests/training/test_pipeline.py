@@ -16,6 +16,7 @@ from dancenet_core.generate import generate_dance
 from dancenet_core.motion import Motion
 from dancenet_core.nets.bundle import DanceNetBundle
 from dancenet_core.representation import encode
+from dancenet_core.request import DanceRequest
 from dancenet_core.skeleton import BODY_JOINTS
 from dancenet_core.training.configs import TrainSettings
 from dancenet_core.training.dancenet import train
@@ -80,8 +81,8 @@ def click_song(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_training_writes_what_generation_runs(tiny_weights: Path, click_song: Path) -> None:
     """Beside its checkpoint, training writes the plain arrays generation runs without torch: the same dance."""
     kw = dict(style="waltz", seed=3, footfix=False)
-    a = generate_dance(click_song, weights=str(tiny_weights.with_suffix(".npz")), **kw)
-    b = generate_dance(click_song, weights=str(tiny_weights), **kw)
+    a = generate_dance(DanceRequest(click_song, weights=str(tiny_weights.with_suffix(".npz")), **kw))
+    b = generate_dance(DanceRequest(click_song, weights=str(tiny_weights), **kw))
     np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)
 
 
@@ -93,9 +94,9 @@ def test_bundle_round_trip(tiny_weights: Path) -> None:
 
 def test_generate_is_seeded_and_song_length(tiny_weights: Path, click_song: Path) -> None:
     kw = dict(style="waltz", temperature=0.5, takes=2, footfix=False, weights=str(tiny_weights))
-    a = generate_dance(click_song, seed=3, **kw)
-    b = generate_dance(click_song, seed=3, **kw)
-    c = generate_dance(click_song, seed=4, **kw)
+    a = generate_dance(DanceRequest(click_song, seed=3, **kw))
+    b = generate_dance(DanceRequest(click_song, seed=3, **kw))
+    c = generate_dance(DanceRequest(click_song, seed=4, **kw))
     assert len(a.motions) == 2
     assert a.motions[0].num_frames == round(a.duration_s * 25)
     np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)

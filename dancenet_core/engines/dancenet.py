@@ -1,0 +1,162 @@
+"""DanceNet, the first engine: the music context encoder, cached autoregressive sampling of the mixture, the
+Foot Constraint Model, decoded to Motions. Same request, same seed: the same dance, bit for bit."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from functools import lru_cache
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..constants import MIN_PART_S
+from ..continuation import join_kept
+from ..errors import DanceNetError, GenerationCancelled
+from ..model.runtime import DEFAULT_RUNTIME, RuntimeBundle, RuntimeFootFixer
+from ..model.sampler import CachedSampler, Sampling, music_conditioning
+from ..motion import Motion
+from ..music.features import MusicAnalysis, music_at_frames
+from ..progress import Progress, StageProgress
+from ..representation import FeatureLayout, decode, encode
+from ..request import DanceRequest
+from . import Takes
+from .styles import check_style, choose_style, is_checkpoint
+
+if TYPE_CHECKING:
+    from ..nets.bundle import DanceNetBundle
+
+    # What generation runs: the runtime's arrays; training and evaluation pass their torch bundles too.
+    Bundle = RuntimeBundle | DanceNetBundle
+
+# Gaussian sigma in frames on the generated channels, chosen with the temperature on the validation songs.
+OUTPUT_SMOOTHING_FRAMES = 1.5
+
+
+@lru_cache(maxsize=2)
+def load_bundle(path: str | None = None) -> RuntimeBundle:
+    """The DanceNet weights as plain arrays: the shipped `.npz` by default; a training checkpoint (`.pt`, e.g.
+    from `runs/`) is converted in memory, which needs torch."""
+    if is_checkpoint(path):
+        from ..nets.bundle import DanceNetBundle  # torch: only where checkpoints are trained
+        from ..nets.export import bundle_to_runtime
+
+        return bundle_to_runtime(DanceNetBundle.load(path))
+    return RuntimeBundle.load(path or DEFAULT_RUNTIME)
+
+
+@lru_cache(maxsize=1)
+def foot_fixer() -> RuntimeFootFixer:
+    """The shipped Foot Constraint Model (loaded once)."""
+    return RuntimeFootFixer.load()
+
+
+def sample_dance(bundle: Bundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,
+                 progress: Progress | None = None, should_stop: Callable[[], bool] | None = None,
+                 prefix: np.ndarray | None = None) -> list[np.ndarray]:
+    """Sample frames for each take and return them unnormalised [T, D], lightly smoothed.
+
+    Each frame's mixture draw adds independent noise; a Gaussian of one frame (40 ms at 25 fps; the
+    authors smooth with sigma 1 at 60 fps) over the continuous channels takes that jitter out without
+    blurring the steps. Contacts stay as predicted.
+    """
+    frames, _ = CachedSampler(bundle.model).run(first, cond, sampling, progress=progress, should_stop=should_stop,
+                                                prefix=prefix)
+    return [finish_frames(bundle, take) for take in frames]
+
+
+def finish_frames(bundle: Bundle, frames: np.ndarray, smoothing: float = OUTPUT_SMOOTHING_FRAMES) -> np.ndarray:
+    """Sampled normalised frames [T, D] -> unnormalised, continuous channels smoothed (see sample_dance);
+    `smoothing` is the Gaussian's sigma in frames (0: none)."""
+    cont = bundle.model.cfg.continuous_dim
+    feats = bundle.normalizer.denormalize(frames)
+    if smoothing > 0:
+        feats[:, :cont] = gaussian_filter1d(feats[:, :cont], smoothing, axis=0, mode="nearest")
+    return feats
+
+
+def kept_frames(bundle: Bundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:
+    """The dance kept up to `at_s` seconds as the model's normalised frames [K, D] at its frame rate, or a
+    one-line error when there is not enough of it before `at_s`, or of the song after."""
+    fps = bundle.model.cfg.fps
+    if kept.skeleton.names != bundle.skeleton.names:
+        raise DanceNetError("only a DanceNet dance (its 55 joints) can be continued")
+    if not (np.isfinite(at_s) and 1.5 / fps <= at_s <= kept.duration + 0.5 / fps):
+        raise DanceNetError(f"the dance can be continued from {2 / fps:g} s to its end ({kept.duration:.2f} s), "
+                            f"got {at_s}")
+    kept = kept.resampled(fps)
+    k = min(int(round(at_s * fps)), kept.num_frames)
+    if frames - k < MIN_PART_S * fps:
+        raise DanceNetError(f"continuing at {at_s:g} s leaves less than {MIN_PART_S:g} s of the part of the song "
+                            f"to dance ({frames / fps:.1f} s)")
+    return bundle.normalizer.normalize(encode(kept[:k]))
+
+
+class DanceNetEngine:
+    """The engine `dancenet` (the default): reads `request.weights` (a `.npz`, or a training `.pt` with torch)."""
+
+    name = "dancenet"
+
+    def styles(self, request: DanceRequest) -> list[str]:
+        return load_bundle(request.weights).styles
+
+    def check(self, request: DanceRequest) -> None:
+        """Load the weights (and the foot model when asked), so a bad file or an unknown style is reported now."""
+        check_style(request.style, self.styles(request))
+        if request.footfix:
+            foot_fixer()
+
+    def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
+              should_cancel: Callable[[], bool]) -> Takes:
+        """The music encoder hears only the requested part, so the dance follows what is played. With
+        `request.continue_from`, its first `at_s` seconds are kept and the model hears them as its own frames,
+        so the join flows."""
+        timings: dict[str, float] = {}
+        t = time.perf_counter()
+        bundle = load_bundle(request.weights)
+        cfg = bundle.model.cfg
+        chosen, probs = choose_style(request.style, analysis, bundle.styles)
+        timings["style_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        start, end = request.part(analysis.duration_s)
+        n = max(2, int(round((end - start) * cfg.fps)))
+        music = music_at_frames(analysis.features, analysis.fps, start + np.arange(n) / cfg.fps)
+        cond = music_conditioning(bundle.model, music, bundle.styles.index(chosen))
+        rng = np.random.default_rng(request.seed)
+        starts = bundle.start_frames[chosen]
+        first = bundle.normalizer.normalize(starts[rng.integers(len(starts), size=request.takes)])
+        prefix = None
+        if request.continue_from is not None:
+            prefix = np.repeat(kept_frames(bundle, request.continue_from, request.at_s, n)[None], request.takes,
+                               axis=0)
+            first = prefix[:, 0]
+        timings["music_encoder_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        progress("dancing", 0.0)
+        try:
+            takes_feats = sample_dance(bundle, cond, first, Sampling(request.temperature, rng),
+                                       progress=lambda f: progress("dancing", f), should_stop=should_cancel,
+                                       prefix=prefix)
+        except InterruptedError as e:
+            raise GenerationCancelled from e
+        timings["generation_s"] = time.perf_counter() - t
+
+        layout = FeatureLayout.for_skeleton(bundle.skeleton)
+        if request.footfix:
+            t = time.perf_counter()
+            progress("cleaning feet", 0.0)
+            fixer = foot_fixer()
+            takes_feats = [fixer(f) for f in takes_feats]
+            timings["footfix_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        if prefix is None:
+            motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]
+        else:
+            kept = request.continue_from.resampled(cfg.fps)
+            motions = [join_kept(kept, f, prefix.shape[1], bundle.skeleton) for f in takes_feats]
+        contacts = [f[:, layout.contacts] for f in takes_feats]
+        timings["decode_s"] = time.perf_counter() - t
+        return Takes(motions, chosen, probs, contacts, timings)

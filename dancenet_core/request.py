@@ -1,0 +1,186 @@
+"""What a user asks for: one `DanceRequest`, built by the command line, the Blender add-on, batch mode and the
+tests, and checked here (one-line DanceNetErrors) before a second of music analysis.
+
+Each field that a user sets carries an `Option` in its metadata: how the command line and batch mode offer it
+(`add_options`, `options_from`) and, with a label, how the add-on's Dance panel does (`panel_options`). A new
+setting is a field here and the engine that reads it; the front-ends pick it up from the metadata.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterator
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE, MIN_PART_S
+from .errors import DanceNetError
+from .motion import FRAME_RATES, Motion
+from .rootmotion import ROOT_MODES
+
+MAX_SEED = 2**32 - 1
+MAX_TAKES = 100
+DEFAULT_ENGINE = "dancenet"
+
+
+@dataclass(frozen=True)
+class Option:
+    """How a DanceRequest field is offered to users.
+
+    `flag` names the command-line option (`dancenet generate` and batch mode; None: not an option there);
+    `label` puts it on the add-on's Dance panel (None: not there); `choices` are (value, label, description)
+    triples; `panel_max`/`soft_max` bound the panel's slider where it should stop short of what a request
+    accepts.
+    """
+
+    help: str
+    kind: type = str
+    flag: str | None = None
+    label: str | None = None
+    choices: tuple[tuple[str, str, str], ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    soft_max: float | None = None
+    panel_max: float | None = None
+    metavar: str | None = None
+
+
+def _option(default: Any, option: Option) -> Any:
+    return field(default=default, metadata={"option": option})
+
+
+_ROOT_LABELS = {
+    "travel": ("Travelling", "The dancer moves across the floor as danced"),
+    "in-place": ("In Place", "The hips' path across the floor removed; turns and height kept"),
+    "root-bone": ("Root Bone", "A root bone on the floor carries the path and heading (game engines); a new rig "
+                  "gets one"),
+}
+_ROOT_CHOICES = tuple((mode, *_ROOT_LABELS[mode]) for mode in ROOT_MODES)
+
+
+@dataclass(frozen=True)
+class DanceRequest:
+    """One Generate Dance: the song, the part of it, how to dance it and how to shape the takes.
+
+    No bpy objects and nothing mutable is shared: it crosses to the add-on's worker thread as it is.
+    """
+
+    song: Path  # an audio file (the add-on passes a sound strip's file)
+    style: str = _option("auto", Option(
+        "auto (the music's style) or a style the engine knows", flag="--style"))
+    seed: int = _option(0, Option(
+        "another seed, another dance to the same song; same seed, same dance", int, "--seed", "Seed", minimum=0,
+        maximum=MAX_SEED))
+    temperature: float = _option(DEFAULT_TEMPERATURE, Option(
+        f"variety of the dance: 1 as the model learnt the dancers, lower calmer, 0 the most likely "
+        f"(default {DEFAULT_TEMPERATURE:g})", float, "--temperature", "Temperature", minimum=0.0,
+        maximum=MAX_TEMPERATURE, soft_max=1.5))
+    takes: int = _option(1, Option(
+        "different dances generated at once (one file set, or one action, each)", int, "--takes", "Takes",
+        minimum=1, maximum=MAX_TAKES, panel_max=8))
+    footfix: bool = _option(True, Option(
+        "remove foot sliding and floor contact errors (--no-footfix skips it)", bool, "--no-footfix",
+        "Foot Clean-up"))
+    start_s: float = _option(0.0, Option(
+        "dance from this many seconds into the song (default: its beginning)", float, "--start",
+        metavar="SECONDS"))
+    end_s: float | None = _option(None, Option(
+        "dance up to this many seconds into the song (default: its end)", float, "--end", metavar="SECONDS"))
+    fps: float | None = _option(None, Option(
+        "frame rate of the takes, slerp-resampled (default: the engine's own, 25 for DanceNet)", int, "--fps",
+        choices=tuple((str(r), str(r), "") for r in FRAME_RATES)))
+    root_motion: str = _option("travel", Option(
+        "travel (as danced), in-place (no horizontal path, heading kept) or root-bone (a 'root' joint on the "
+        "floor carries path and heading)", str, "--root-motion", "Root Motion", choices=_ROOT_CHOICES))
+    continue_from: Motion | None = None  # a dance to the same part of the song, kept up to `at_s` seconds
+    at_s: float = 0.0
+    engine: str = _option(DEFAULT_ENGINE, Option(
+        "what makes the dance (engines.ENGINES)", str, "--engine"))
+    weights: str | None = _option(None, Option(
+        "the engine's weights file (default: the shipped ones)", str, "--weights"))
+    library: Path | None = _option(None, Option(
+        "a folder of motion clips, for an engine that dances from them", Path, "--library"))
+
+    def check(self) -> None:
+        """Reject what no engine can dance, whatever the song: a one-line DanceNetError that says what to do."""
+        check_part(self.start_s, self.end_s)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or \
+                not 0 <= self.seed <= MAX_SEED:
+            raise DanceNetError(f"seed must be a whole number from 0 to {MAX_SEED}, got {self.seed}")
+        if not 0 <= self.temperature <= MAX_TEMPERATURE:  # also false for NaN
+            raise DanceNetError(f"temperature must be from 0 to {MAX_TEMPERATURE:g} (0 = the most likely dance, "
+                                f"default {DEFAULT_TEMPERATURE:g}), got {self.temperature}")
+        if not 1 <= self.takes <= MAX_TAKES:
+            raise DanceNetError(f"takes must be from 1 to {MAX_TAKES}, got {self.takes}")
+        if self.fps is not None and not (np.isfinite(self.fps) and 1 <= self.fps <= 1000):
+            raise DanceNetError(f"the frame rate must be from 1 to 1000 fps, got {self.fps}")
+        if self.root_motion not in ROOT_MODES:
+            raise DanceNetError(f"unknown root motion '{self.root_motion}'; choose one of: {', '.join(ROOT_MODES)}")
+        if self.continue_from is not None and not 0 < self.at_s <= self.continue_from.duration:
+            raise DanceNetError(f"the new dancing must start within the kept dance (0 to "
+                                f"{self.continue_from.duration:.2f} s), got {self.at_s}")
+        check_song_path(self.song)
+
+    def part(self, duration_s: float) -> tuple[float, float]:
+        """(start, end) seconds of the song to dance: the end clipped to the song's; a start too close to the
+        song's end is an error that says how long the song is."""
+        end = duration_s if self.end_s is None else min(self.end_s, duration_s)
+        if end - self.start_s < MIN_PART_S:
+            raise DanceNetError(f"start {self.start_s:g} s leaves less than {MIN_PART_S:g} s of the song to dance "
+                                f"(the song lasts {duration_s:.1f} s)")
+        return self.start_s, end
+
+
+def check_part(start_s: float, end_s: float | None) -> None:
+    """Reject a part of the song that cannot exist whatever the song (before the music is analysed)."""
+    if not (np.isfinite(start_s) and start_s >= 0):
+        raise DanceNetError(f"start must be 0 or more seconds into the song, got {start_s}")
+    if end_s is not None and not (np.isfinite(end_s) and end_s >= start_s + MIN_PART_S):
+        raise DanceNetError(f"end ({end_s} s) must be at least {MIN_PART_S:g} s after start ({start_s} s)")
+
+
+def check_song_path(song: str | Path) -> Path:
+    """`song` as a Path if it names a file; a one-line error saying what it is otherwise."""
+    path = Path(song)
+    if path.is_dir():
+        raise DanceNetError(f"{song} is a folder, not an audio file; give the path of a song file")
+    if not path.is_file():
+        raise DanceNetError(f"song not found: {song} (check the path)")
+    return path
+
+
+def options() -> Iterator[tuple[str, Any, Option]]:
+    """(field name, default, Option) for every setting users set, in the request's order."""
+    for f in fields(DanceRequest):
+        if "option" in f.metadata:
+            yield f.name, (None if f.default is MISSING else f.default), f.metadata["option"]
+
+
+def panel_options() -> list[tuple[str, Any, Option]]:
+    """The settings the add-on's Dance panel offers (those with a label), in order."""
+    return [(name, default, o) for name, default, o in options() if o.label is not None]
+
+
+def add_options(parser: argparse.ArgumentParser, help_overrides: dict[str, str] | None = None) -> None:
+    """The request's command-line options (each field with a flag), for `dancenet generate` and batch mode."""
+    for name, default, o in options():
+        if o.flag is None:
+            continue
+        text = (help_overrides or {}).get(name, o.help)
+        if o.kind is bool:
+            parser.add_argument(o.flag, dest=name, action="store_false" if default else "store_true", help=text)
+            continue
+        choices = [o.kind(c[0]) for c in o.choices] or None
+        parser.add_argument(o.flag, dest=name, type=o.kind, default=default, choices=choices, metavar=o.metavar,
+                            help=text)
+
+
+def options_from(args: argparse.Namespace) -> dict[str, Any]:
+    """The DanceRequest fields `add_options` parsed (weights and library as given, as str and Path)."""
+    values = {name: getattr(args, name) for name, _default, o in options() if o.flag is not None}
+    if values.get("weights") is not None:
+        values["weights"] = str(values["weights"])
+    return values
