@@ -1,0 +1,12 @@
+"""The motion library engine (issue 25): a folder of real motion clips cut on the beats of a song.
+
+- `analysis.py`: one clip's own beats (kinematic beats: minima of its joints' speed), tempo, bars, and the pose,
+  velocity and foot contact at each beat (where a figure may be cut).
+- `store.py`: a built library (every clip end to end, its beats and boundary features), saved and loaded as plain
+  arrays, cached by the folder's content; what generation reads.
+- `choreography.py`: choosing a figure for every bar of a song (dynamic programming over the bars: energy matched to
+  the music, tempo within +-15%, transition cost), time-warping each to the song's beats, and joining them
+  (`transitions.py`: inertialised cuts, the root path carried).
+- `build.py`: reading a folder of BVH clips (our 55 joints in any unit and up axis, or CMU's names, retargeted) into
+  a library; building only (it may use `data/`), never imported when dancing.
+"""

@@ -1,0 +1,257 @@
+"""A song's dance from a motion library: a figure for every bar, time-warped onto the song's beats.
+
+1. The song's beat grid (`song_grid`): its tracked beats, extended at the same tempo to cover the part danced,
+   cut into bars at its downbeats (none longer than the meter).
+2. The plan (`plan`): dynamic programming over the bars. A state is a figure start in the library (a downbeat of a
+   clip in the song's meter, or every `meter` beats of a clip in another); a bar of n beats takes the library's n
+   beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of the mean
+   onset strength), the time-warp (beyond +-15% per beat only when nothing fits, at a steep cost) and seeded noise
+   (different seeds, different dances); each join's: the distance between the pose, velocity and foot contact
+   where one figure ends and the next starts (0 where the next figure is the clip's own continuation). The whole
+   table is [bars, figures] and each step a vectorised min over [figures, figures]: a 3-minute song on a
+   30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
+3. The dance (`transitions.render`): every figure's frames sampled at the warped times, the root path carried
+   across cuts, each cut inertialised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import DanceNetError
+from ..motion import Motion
+from ..music.features import FPS as MUSIC_FPS
+from ..music.features import ONSET_COL, MusicAnalysis
+from .analysis import POSE_DIM
+from .store import MotionLibrary
+from .transitions import Figure, render
+
+WARP_RANGE = 0.15  # a figure may be slowed or hurried by this much per beat
+LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
+DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
+FALLBACK_METER = 4
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Weights of the plan's costs (a jump between unrelated poses costs about 1)."""
+
+    energy: float = 2.0
+    tempo: float = 1.0
+    out_of_range: float = 50.0
+    noise: float = 0.25
+    pose: float = 1.0
+    velocity: float = 0.15
+    contact: float = 0.3
+
+
+DEFAULT_SETTINGS = Settings()
+
+
+@dataclass
+class Grid:
+    """The song's beats (seconds) over the part danced and its bars as (first beat, beats) pairs."""
+
+    beats: np.ndarray
+    bars: list[tuple[int, int]]
+    meter: int
+
+
+@dataclass
+class Report:
+    """What a dance is made of: its figures, its cuts and how much of it is copied in long runs of one clip."""
+
+    figures: list[dict] = field(default_factory=list)
+    cuts: list[int] = field(default_factory=list)  # frames where a new clip (or a jump within one) starts
+    long_run_share: float = 0.0  # share of frames from runs of one clip longer than LONG_RUN_BARS bars
+    longest_run_bars: int = 0
+    longest_run_s: float = 0.0
+    max_warp: float = 0.0  # largest per-beat time-warp, as a fraction (0.1: 10% slower or faster)
+
+    def summary(self) -> dict:
+        return {"figures": len(self.figures), "cuts": len(self.cuts), "long_run_bars": LONG_RUN_BARS,
+                "long_run_share": round(self.long_run_share, 4), "longest_run_bars": self.longest_run_bars,
+                "longest_run_s": round(self.longest_run_s, 2), "max_warp": round(self.max_warp, 4)}
+
+
+@dataclass
+class LibraryDance:
+    motion: Motion
+    report: Report
+
+
+def song_grid(analysis: MusicAnalysis, start_s: float, end_s: float) -> Grid:
+    """Beats covering [start_s, end_s] (the tracked ones, extended at the median beat interval before and after)
+    and the bars between downbeats (a longer stretch is cut every `meter` beats)."""
+    beats, downs = np.asarray(analysis.beat_times, np.float64), np.asarray(analysis.downbeat_times, np.float64)
+    if len(beats) < 2:
+        beats, downs = np.array([start_s, start_s + 60 / DEFAULT_BPM]), np.array([start_s])
+    flags = np.isin(beats, downs)
+    known = np.flatnonzero(flags)
+    meter = int(np.clip(np.median(np.diff(known)), 2, 6)) if len(known) > 1 else FALLBACK_METER
+    ibi = float(np.median(np.diff(beats)))
+    before = int(max(0, np.ceil((beats[0] - start_s) / ibi)))
+    after = int(max(0, np.ceil((end_s - beats[-1]) / ibi)))
+    beats = np.concatenate([beats[0] - ibi * np.arange(before, 0, -1), beats,
+                            beats[-1] + ibi * np.arange(1, after + 1)])
+    index = np.arange(len(beats))
+    first = known[0] + before if len(known) else before
+    last = known[-1] + before if len(known) else before
+    flags = np.concatenate([np.zeros(before, bool), flags, np.zeros(after, bool)])
+    flags |= ((index < first) & ((first - index) % meter == 0)) | ((index > last) & ((index - last) % meter == 0))
+    if not flags.any():
+        flags[::meter] = True
+    # Keep the beats from the last at or before start_s to the first at or after end_s.
+    lo, hi = int(np.searchsorted(beats, start_s, "right")) - 1, int(np.searchsorted(beats, end_s, "left"))
+    beats, flags = beats[lo : hi + 1], flags[lo : hi + 1]
+    edges = sorted({0, len(beats) - 1, *np.flatnonzero(flags).tolist()})
+    bars = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        while b - a > meter:
+            bars.append((a, meter))
+            a += meter
+        bars.append((a, b - a))
+    return Grid(beats, bars, meter)
+
+
+def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.ndarray:
+    """Beats where a figure may start (with `meter` more beats of its clip after it): downbeats of clips in `meter`,
+    every `meter` beats from the first downbeat of the others; only clips of `style` when the library has figures
+    of it."""
+    starts = np.zeros(len(library.beats), bool)
+    for c in range(library.num_clips):
+        idx = np.flatnonzero(library.beat_clip == c)
+        if len(idx) < 2:
+            continue
+        if library.meter[c] == meter:
+            starts[idx] = library.downbeat[idx]
+        else:
+            first = idx[np.argmax(library.downbeat[idx])] - idx[0]
+            starts[idx[first::meter]] = True
+    ahead = np.arange(len(starts)) + meter
+    starts[ahead >= len(starts)] = False
+    starts &= library.beat_clip[np.minimum(ahead, len(starts) - 1)] == library.beat_clip
+    if style:
+        same = starts & np.isin(library.beat_clip, [c for c, s in enumerate(library.styles) if s == style])
+        if same.any():
+            starts = same
+    return np.flatnonzero(starts)
+
+
+def _ranks(x: np.ndarray) -> np.ndarray:
+    """Each value's rank as a fraction in [0, 1] (ties share the lower rank)."""
+    return np.searchsorted(np.sort(x), x) / max(1, len(x) - 1)
+
+
+def _weights(settings: Settings, dim: int) -> np.ndarray:
+    w = np.empty(dim, np.float32)
+    w[:POSE_DIM], w[POSE_DIM : 2 * POSE_DIM], w[2 * POSE_DIM :] = settings.pose, settings.velocity, settings.contact
+    return w
+
+
+def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
+         style: str | None = None, settings: Settings = DEFAULT_SETTINGS) -> list[tuple[int, int]]:
+    """The figure start (a beat of the library) for every bar of `grid`: the cheapest path through the bars
+    (see the module's docstring); `onset` [T] is the song's onset strength at MUSIC_FPS."""
+    starts = figure_starts(library, grid.meter, style)
+    nb = len(library.beats)
+    if len(starts) == 0:
+        raise DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut a figure "
+                            "from; add longer clips (a few bars each)")
+    lib_ibi = np.append(np.diff(library.beats), np.inf)
+    lib_ibi[np.flatnonzero(np.diff(library.beat_clip))] = np.inf  # no beat interval across clips
+    lib_ibi /= library.fps
+    csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
+    fig_energy = _ranks((csum[np.minimum(starts + grid.meter, nb)] - csum[starts]) / grid.meter)
+    weights = _weights(settings, library.features.shape[1])
+    feats = library.features * np.sqrt(weights)
+    sq = (feats**2).sum(1)
+
+    bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
+    frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
+    music = np.array([onset[a : max(a + 1, b)].mean() for a, b in frames])
+    music_rank = _ranks(music)
+
+    transition_cache: dict[int, np.ndarray] = {}
+    scale = None
+
+    def transitions(n_prev: int) -> np.ndarray:
+        """[F, F]: the cost from the figure at each start, n_prev beats long, to each start."""
+        nonlocal scale
+        if n_prev not in transition_cache:
+            ends = np.minimum(starts + n_prev, nb - 1)
+            d = sq[ends][:, None] + sq[starts][None, :] - 2.0 * feats[ends] @ feats[starts].T
+            d = np.maximum(d, 0.0)
+            d[ends[:, None] == starts[None, :]] = 0.0  # the clip's own continuation
+            if scale is None:
+                scale = float(np.median(d)) or 1.0
+            transition_cache[n_prev] = d / scale
+        return transition_cache[n_prev]
+
+    def unary(b: int) -> np.ndarray:
+        a, n = grid.bars[b]
+        song_ibi = np.diff(grid.beats[a : a + n + 1])
+        idx = np.minimum(starts[:, None] + np.arange(n)[None, :], nb - 1)
+        with np.errstate(divide="ignore"):
+            warp = np.abs(np.log(song_ibi[None, :] / lib_ibi[idx])).max(axis=1)
+        fits = np.isfinite(warp) & (library.beat_clip[np.minimum(starts + n, nb - 1)] == library.beat_clip[starts])
+        cost = (settings.energy * (music_rank[b] - fig_energy) ** 2 + settings.tempo * warp**2
+                + settings.out_of_range * np.maximum(warp - np.log1p(WARP_RANGE), 0.0)
+                + rng.normal(0.0, settings.noise, len(starts)))
+        return np.where(fits, cost, np.inf)
+
+    cost = unary(0)
+    back = np.zeros((len(grid.bars), len(starts)), np.int32)
+    for b in range(1, len(grid.bars)):
+        total = cost[:, None] + transitions(grid.bars[b - 1][1])
+        back[b] = np.argmin(total, axis=0)
+        u = unary(b)
+        cost = u + total[back[b], np.arange(len(starts))]
+    path = [int(np.argmin(cost))]
+    for b in range(len(grid.bars) - 1, 0, -1):
+        path.append(int(back[b, path[-1]]))
+    return [(int(starts[k]), n) for k, (_, n) in zip(path[::-1], grid.bars, strict=True)]
+
+
+def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
+                end_s: float | None = None, takes: int = 1, style: str | None = None,
+                settings: Settings = DEFAULT_SETTINGS) -> list[LibraryDance]:
+    """`takes` dances to the song's part from `start_s` to `end_s` (default: its end), cut from `library`; the same
+    seed gives the same dances."""
+    end = analysis.duration_s if end_s is None else min(end_s, analysis.duration_s)
+    grid = song_grid(analysis, start_s, end)
+    rng = np.random.default_rng(seed)
+    onset = analysis.features[:, ONSET_COL]
+    dances = []
+    for _ in range(takes):
+        bars = plan(library, grid, onset, rng, style, settings)
+        figures = [Figure(s, n, grid.beats[a : a + n + 1]) for (s, n), (a, _) in zip(bars, grid.bars, strict=True)]
+        motion, cuts = render(library, figures, start_s, end)
+        dances.append(LibraryDance(motion, report(library, figures, cuts, grid, start_s, end)))
+    return dances
+
+
+def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], grid: Grid, start_s: float,
+           end_s: float) -> Report:
+    """The figures (clip, where in it, where in the song), the runs of one clip and the largest time-warp."""
+    rows, runs, warp = [], [], 0.0
+    for k, f in enumerate(figures):
+        clip = int(library.beat_clip[f.start])
+        lib = library.beats[f.start : f.start + f.beats + 1]
+        t0 = library.clip_starts[clip]
+        song = np.clip(f.times, start_s, end_s)
+        warp = max(warp, float(np.abs(np.diff(f.times) / (np.diff(lib) / library.fps) - 1.0).max()))
+        rows.append({"clip": library.names[clip], "clip_s": [round(float((lib[0] - t0) / library.fps), 3),
+                                                              round(float((lib[-1] - t0) / library.fps), 3)],
+                     "song_s": [round(float(song[0]), 3), round(float(song[-1]), 3)]})
+        continues = k > 0 and figures[k - 1].start + figures[k - 1].beats == f.start
+        if continues:
+            runs[-1] = (runs[-1][0] + 1, runs[-1][1] + song[-1] - song[0])
+        else:
+            runs.append((1, song[-1] - song[0]))
+    total = max(end_s - start_s, 1e-9)
+    longest = max(runs, key=lambda r: r[1])
+    return Report(rows, cuts, float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total), int(longest[0]),
+                  float(longest[1]), warp)

@@ -1,0 +1,155 @@
+"""A built motion library: every clip end to end at one frame rate, with each clip's beats, bars and the boundary
+features at each beat; saved as plain arrays (`.npz`, read with allow_pickle=False) under the cache folder, keyed by
+the content of the folder it was built from. This module is what generation reads: it imports no building code.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_open
+from ..environment import cache_root
+from ..errors import DanceNetError
+from ..motion import Motion
+from ..skeleton import Skeleton
+from .analysis import FEATURE_DIM, ClipAnalysis
+
+LIBRARY_VERSION = "motion-library-1"  # change whenever what a build computes changes
+LIBRARY_FPS = 25.0
+CLIP_SUFFIXES = (".bvh",)
+
+
+@dataclass
+class MotionLibrary:
+    """rotations [N, 55, 3] and root_positions [N, 3] of all clips end to end (clip c: frames clip_starts[c] to
+    clip_starts[c + 1]); per beat (all clips, in order): its frame (sub-frame, counted from the clip's start plus
+    clip_starts), clip, downbeat flag, boundary features [B, FEATURE_DIM] and energy (mean joint speed to the
+    next beat, m/s); per clip: name, style, tempo and meter; offsets: the skeleton every dance is built on."""
+
+    rotations: np.ndarray
+    root_positions: np.ndarray
+    offsets: np.ndarray
+    clip_starts: np.ndarray
+    names: list[str]
+    styles: list[str]
+    tempo_bpm: np.ndarray
+    meter: np.ndarray
+    beats: np.ndarray
+    beat_clip: np.ndarray
+    downbeat: np.ndarray
+    features: np.ndarray
+    energy: np.ndarray
+    fps: float = LIBRARY_FPS
+    notes: tuple[str, ...] = ()  # what the build left out, one line each
+
+    @property
+    def num_clips(self) -> int:
+        return len(self.names)
+
+    @property
+    def duration_s(self) -> float:
+        return len(self.rotations) / self.fps
+
+    @property
+    def skeleton(self) -> Skeleton:
+        return Skeleton(self.offsets)
+
+    def clip(self, c: int) -> Motion:
+        a, b = self.clip_starts[c], self.clip_starts[c + 1]
+        return Motion(self.rotations[a:b], self.root_positions[a:b], self.fps, self.skeleton)
+
+    @classmethod
+    def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()
+                   ) -> MotionLibrary:
+        """A library of (name, style, motion at LIBRARY_FPS, its analysis) clips; the skeleton is their mean."""
+        if not clips:
+            raise DanceNetError("no clip to build a library from")
+        starts = np.cumsum([0] + [m.num_frames for _, _, m, _ in clips])
+        return cls(
+            rotations=np.concatenate([m.rotations for _, _, m, _ in clips]).astype(np.float32),
+            root_positions=np.concatenate([m.root_positions for _, _, m, _ in clips]).astype(np.float32),
+            offsets=np.mean([m.skeleton.offsets for _, _, m, _ in clips], axis=0),
+            clip_starts=starts,
+            names=[n for n, _, _, _ in clips],
+            styles=[s for _, s, _, _ in clips],
+            tempo_bpm=np.array([a.tempo_bpm for *_, a in clips]),
+            meter=np.array([a.meter for *_, a in clips], dtype=np.int64),
+            beats=np.concatenate([a.beats + s for (*_, a), s in zip(clips, starts, strict=False)]),
+            beat_clip=np.concatenate([np.full(len(a.beats), c) for c, (*_, a) in enumerate(clips)]).astype(np.int64),
+            downbeat=np.concatenate([a.downbeat for *_, a in clips]).astype(bool),
+            features=np.concatenate([a.features for *_, a in clips]).astype(np.float32).reshape(-1, FEATURE_DIM),
+            energy=np.concatenate([a.energy for *_, a in clips]).astype(np.float32),
+            notes=notes,
+        )
+
+    def save(self, path: str | Path) -> None:
+        meta = {"version": LIBRARY_VERSION, "fps": self.fps, "names": self.names, "styles": self.styles,
+                "notes": list(self.notes)}
+        with atomic_open(path, "wb") as f:
+            np.savez(f, rotations=self.rotations, root_positions=self.root_positions, offsets=self.offsets,
+                     clip_starts=self.clip_starts, tempo_bpm=self.tempo_bpm, meter=self.meter, beats=self.beats,
+                     beat_clip=self.beat_clip, downbeat=self.downbeat, features=self.features, energy=self.energy,
+                     meta=np.array(json.dumps(meta)))
+
+    @classmethod
+    def load(cls, path: str | Path) -> MotionLibrary:
+        """A library written by `save`; ValueError for anything else (damaged, of another version)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                if meta.get("version") != LIBRARY_VERSION:
+                    raise ValueError(f"a library of version {meta.get('version')}")
+                lib = cls(z["rotations"], z["root_positions"], z["offsets"], z["clip_starts"], list(meta["names"]),
+                          list(meta["styles"]), z["tempo_bpm"], z["meter"], z["beats"], z["beat_clip"],
+                          z["downbeat"], z["features"], z["energy"], float(meta["fps"]), tuple(meta["notes"]))
+        except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
+            raise ValueError(f"{path}: not a motion library ({e})") from e
+        n, b = len(lib.rotations), len(lib.beats)
+        if (lib.rotations.shape[1:] != (lib.offsets.shape[0], 3) or lib.root_positions.shape != (n, 3)
+                or lib.clip_starts[-1] != n or len(lib.names) + 1 != len(lib.clip_starts)
+                or lib.features.shape != (b, FEATURE_DIM) or not len(lib.beat_clip) == len(lib.downbeat) == b):
+            raise ValueError(f"{path}: a motion library whose arrays do not fit each other")
+        return lib
+
+
+def clip_files(folder: Path) -> list[Path]:
+    """The clips of a library folder (BVH files, any depth), in a fixed order."""
+    return sorted(p for p in folder.rglob("*") if p.suffix.lower() in CLIP_SUFFIXES and p.is_file())
+
+
+def folder_key(folder: str | Path) -> str:
+    """A digest of the folder's clips (names relative to it and bytes) and of its manifest: a changed, added or
+    removed clip builds a new library."""
+    folder = Path(folder)
+    h = hashlib.sha256(LIBRARY_VERSION.encode())
+    for p in [*clip_files(folder), folder / "manifest.csv"]:
+        if p.is_file():
+            h.update(str(p.relative_to(folder)).encode() + b"\0")
+            h.update(hashlib.sha256(p.read_bytes()).digest())
+    return h.hexdigest()[:32]
+
+
+def library_path(folder: str | Path) -> Path:
+    """Where the library built from `folder` is cached."""
+    return cache_root() / LIBRARY_VERSION / f"{folder_key(folder)}.npz"
+
+
+def load_built(folder: str | Path) -> MotionLibrary:
+    """The library built from `folder` (by `dancenet library build`), or a one-line error saying to build it."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
+    path = library_path(folder)
+    if not path.is_file():
+        raise DanceNetError(f"the library in {folder} is not built (or changed since): run `dancenet library build "
+                            f"{folder}` first")
+    try:
+        return MotionLibrary.load(path)
+    except ValueError as e:
+        raise DanceNetError(f"{e}; run `dancenet library build {folder}` again") from e

@@ -1,0 +1,119 @@
+"""Figures of a plan turned into one dance: each figure's frames sampled at its time-warped positions, the root
+path and heading carried across cuts, and every cut inertialised.
+
+A run is a stretch of figures that continue one clip; it is placed once (a turn about +Y and a shift on the floor),
+so that its first frame stands where the run before it would have gone on to (its next frame in its own clip)
+and faces the same way. At each cut the difference between that run's continuation and the new run (joint
+rotations and the root, over the two frames before the cut) fades out over `continuation.BLEND_S` with the same
+quintic as continuing a dance (no jump in place, speed or acceleration), as game engines inertialise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..continuation import BLEND_S, _fade
+from ..motion import Motion
+from .store import MotionLibrary
+
+
+@dataclass
+class Figure:
+    """A bar of the dance: `beats` library beats from the library beat `start`, played at song times `times`
+    ([beats + 1] seconds, one per beat and the next bar's first)."""
+
+    start: int
+    beats: int
+    times: np.ndarray
+
+
+def _sample(library: MotionLibrary, pos: np.ndarray, clip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations [T, J, 3] and root positions [T, 3] at fractional library frames `pos` (within each frame's
+    clip `clip`): normalised linear interpolation of quaternions between neighbouring frames."""
+    lo_f, hi_f = library.clip_starts[clip], library.clip_starts[clip + 1] - 1
+    pos = np.clip(pos, lo_f, hi_f)
+    i0 = np.floor(pos).astype(np.int64)
+    i1 = np.minimum(i0 + 1, hi_f)
+    a = (pos - i0)[:, None]
+    nj = library.rotations.shape[1]
+    q0 = Rotation.from_rotvec(library.rotations[i0].reshape(-1, 3)).as_quat().reshape(-1, nj, 4)
+    q1 = Rotation.from_rotvec(library.rotations[i1].reshape(-1, 3)).as_quat().reshape(-1, nj, 4)
+    q1 *= np.sign((q0 * q1).sum(-1, keepdims=True) + 1e-12)
+    q = q0 * (1 - a[..., None]) + q1 * a[..., None]
+    rot = Rotation.from_quat(q.reshape(-1, 4)).as_rotvec().reshape(-1, nj, 3)
+    root = library.root_positions[i0] * (1 - a) + library.root_positions[i1] * a
+    return rot, root
+
+
+def _yaw(rotvec: np.ndarray) -> np.ndarray:
+    """Heading (twist about +Y) of root rotations [..., 3]."""
+    q = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_quat()
+    return 2.0 * np.arctan2(q[:, 1], q[:, 3])
+
+
+def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frames turned by `turn` about +Y and shifted by `shift` on the floor (root rotation and position)."""
+    r = Rotation.from_euler("y", turn)
+    rot = rot.copy()
+    rot[:, 0] = (r * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
+    root = r.apply(root) + np.array([shift[0], 0.0, shift[1]])
+    return rot, root
+
+
+def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s: float) -> tuple[Motion, list[int]]:
+    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, and the frames of its cuts."""
+    fps = library.fps
+    n = max(2, int(round((end_s - start_s) * fps)))
+    t = start_s + np.arange(n) / fps
+    pos = np.empty(n)
+    which = np.searchsorted([f.times[0] for f in figures], t, "right") - 1
+    which = np.clip(which, 0, len(figures) - 1)
+    for k, f in enumerate(figures):
+        sel = which == k
+        if sel.any():
+            pos[sel] = np.interp(t[sel], f.times, library.beats[f.start : f.start + f.beats + 1])
+    clip = library.beat_clip[[f.start for f in figures]][which]
+    rot, root = _sample(library, pos, clip)
+
+    # Runs: figures that continue one clip. Each is placed once; a cut starts a new run.
+    new_run = np.array([k == 0 or figures[k - 1].start + figures[k - 1].beats != f.start
+                        for k, f in enumerate(figures)])
+    run_of_figure = np.cumsum(new_run) - 1
+    run = run_of_figure[which]
+    cuts = [int(c) for c in np.flatnonzero(np.diff(run)) + 1]
+    turn, shift = -float(_yaw(rot[:1, 0])[0]), np.zeros(2)
+    placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
+    bounds = [0, *cuts, n]
+    for r, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        if r == 0:
+            shift = -Rotation.from_euler("y", turn).apply(root[0])[[0, 2]]
+        else:
+            # Where the previous run would have gone on to, and which way it would have faced.
+            prev_clip = np.array([clip[a - 1]])
+            step = pos[a - 1] - pos[a - 2] if a >= 2 else 1.0
+            nrot, nroot = _sample(library, np.array([pos[a - 1] + step]), prev_clip)
+            nrot, nroot = _place(nrot, nroot, turn, shift)
+            new_turn = float(_yaw(nrot[:, 0])[0] - _yaw(rot[a : a + 1, 0])[0])
+            turn, shift = new_turn, nroot[0, [0, 2]] - Rotation.from_euler("y", new_turn).apply(root[a])[[0, 2]]
+        placed_rot[a:b], placed_root[a:b] = _place(rot[a:b], root[a:b], turn, shift)
+        if r > 0 and a >= 2:
+            _inertialise(library, placed_rot, placed_root, pos, clip, a, b, turn, shift)
+    return Motion(placed_rot, placed_root, fps, library.skeleton), cuts
+
+
+def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, pos: np.ndarray, clip: np.ndarray,
+                 a: int, b: int, turn: float, shift: np.ndarray) -> None:
+    """Fade the new run's difference from the old one's last two frames out over its first frames (in place)."""
+    step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
+    lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
+    lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
+    nj = rot.shape[1]
+    rot_diff = (Rotation.from_rotvec(rot[a - 2 : a].reshape(-1, 3))
+                * Rotation.from_rotvec(lead_rot.reshape(-1, 3)).inv()).as_rotvec().reshape(2, nj, 3)
+    m = min(b - a, max(2, int(round(BLEND_S * library.fps))))
+    offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
+    rot[a : a + m] = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
+    root[a : a + m] += _fade(m, root[a - 2 : a] - lead_root)
