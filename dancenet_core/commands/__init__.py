@@ -10,6 +10,7 @@ COMMANDS: dict[str, str] = {
     "analyze": "print a song's tempo, style, beats and downbeats",
     "render": "render a motion (BVH or .npz) as a preview video with its music",
     "data": "build or inspect the training dataset",
+    "library": "build a motion library from a folder of BVH clips (for --engine library)",
     "train": "train DanceNet, the foot model or a style classifier",
     "card": "rewrite a model card from trained weights",
     "evaluate": "the paper's comparison table on the test split (trains what is missing)",

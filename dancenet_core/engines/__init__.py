@@ -28,6 +28,7 @@ from ..request import DanceRequest
 # name -> "module:attribute" of a class or function that makes the engine (no arguments).
 ENGINES: dict[str, str] = {
     "dancenet": "dancenet_core.engines.dancenet:DanceNetEngine",
+    "library": "dancenet_core.library.engine:LibraryEngine",
 }
 
 

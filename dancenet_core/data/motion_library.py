@@ -1,0 +1,125 @@
+"""`dancenet library build FOLDER`: a folder of BVH clips read onto our skeleton and analysed into a motion library
+(`library/store.py`), once per content of the folder.
+
+A clip is read when it holds our 55 joints (`dancenet generate`'s BVH, with or without a root bone, in metres,
+centimetres, millimetres or inches: `rootmotion.read_dance_bvh`) or CMU's joint names (as AMASS writes them, in
+metres or centimetres: retargeted by the CMU joint map, `data/retarget.py`). Either may be Y- or Z-up (the head
+above the pelvis tells). CMU clips take each mapped joint's world rotation (the rest poses agree), without the
+dataset build's position fit: the fit needs torch and about 35 s per minute of motion, this a fraction of a second.
+Clips are resampled to the library's 25 fps and put on the floor (`floor_track`). A clip's style is its folder's
+name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`). Anything else
+in the folder is left out with a one-line note.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..bvh import read_bvh
+from ..errors import DanceNetError, first_line
+from ..kinematics import fk_numpy
+from ..library.analysis import analyze_clip
+from ..library.store import LIBRARY_FPS, MotionLibrary, clip_files, library_path
+from ..motion import Motion
+from ..rootmotion import UNITS, read_dance_bvh
+from ..skeleton import JOINT_INDEX, JOINT_NAMES
+from .build import floor_track
+from .retarget import CMU, initial_rotations, performer_skeleton, source_pose, up_rotation
+
+MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
+DANCER_HEIGHT_M = 1.7  # the unit of a CMU clip is the one that makes its rest pose nearest this tall
+
+
+def _upright(motion: Motion) -> Motion:
+    """The motion turned so that its up axis (head above pelvis) is +Y."""
+    pos = fk_numpy(motion.skeleton, motion.rotations[::10], motion.root_positions[::10])[0]
+    turn = up_rotation(pos, JOINT_INDEX["pelvis"], JOINT_INDEX["head"])
+    if np.allclose(turn.as_matrix(), np.eye(3)):
+        return motion
+    rot = motion.rotations.copy()
+    rot[:, 0] = (turn * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
+    root = turn.apply(motion.root_positions + motion.skeleton.offsets[0]) - motion.skeleton.offsets[0]
+    return Motion(rot, root, motion.fps, motion.skeleton)
+
+
+def _cmu_clip(path: Path) -> Motion:
+    """A CMU-named clip on our skeleton: each mapped joint gets the source joint's world rotation."""
+    data = read_bvh(path)
+    tall = float(np.ptp(data.to_motion().skeleton.rest_positions(), axis=0).max())
+    unit = min(UNITS, key=lambda u: abs(np.log(max(tall, 1e-9) * u[1] / DANCER_HEIGHT_M)))[1]
+    source = source_pose(data, replace(CMU, scale=unit), LIBRARY_FPS, path.name)
+    skeleton = performer_skeleton(source)
+    rotations = initial_rotations(source)
+    root = source.positions[:, source.joints.index(0)] - skeleton.offsets[0]
+    return Motion(rotations, root, LIBRARY_FPS, skeleton)
+
+
+def read_clip(path: Path) -> Motion:
+    """A clip of the folder on our 55 joints: metres, Y up, 25 fps, feet on the floor; a one-line DanceNetError
+    when it is none of the skeletons the library reads."""
+    data = read_bvh(path)
+    names = set(data.names)
+    if names >= set(JOINT_NAMES):
+        motion = _upright(read_dance_bvh(path))
+    elif names >= set(CMU.joints.values()):
+        motion = _cmu_clip(path)
+    else:
+        raise DanceNetError(f"{path.name}: not a skeleton the library reads (DanceNet's 55 joints or CMU's names; "
+                            f"this one has {len(data.names)} joints: {', '.join(data.names[:6])}...)")
+    motion = motion.resampled(LIBRARY_FPS)
+    if motion.duration < MIN_CLIP_S:
+        raise DanceNetError(f"{path.name}: {motion.duration:.2f} s, too short to hold a bar")
+    motion.root_positions[:, 1] -= floor_track(motion)
+    return motion
+
+
+def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
+    """Each clip's style: the manifest's `style` for its `file`, else the name of its folder below `folder`."""
+    styles = {f: (f.relative_to(folder).parts[0] if len(f.relative_to(folder).parts) > 1 else "") for f in files}
+    manifest = folder / "manifest.csv"
+    if manifest.is_file():
+        with open(manifest, newline="") as f:
+            for row in csv.DictReader(f):
+                path = folder / str(row.get("file", ""))
+                if path in styles and row.get("style"):
+                    styles[path] = str(row["style"]).strip()
+    return styles
+
+
+def build_library(folder: str | Path, force: bool = False,
+                  report: Callable[[str], object] = print) -> tuple[MotionLibrary, Path]:
+    """The library of `folder`, built now (or read from the cache when its content was built before)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
+    path = library_path(folder)
+    if path.is_file() and not force:
+        try:
+            return MotionLibrary.load(path), path
+        except ValueError as e:
+            report(f"rebuilding the library: {first_line(e)}")
+    files = clip_files(folder)
+    if not files:
+        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style)")
+    styles = clip_styles(folder, files)
+    clips, notes = [], []
+    for f in files:
+        try:
+            motion = read_clip(f)
+        except DanceNetError as e:
+            notes.append(f"left out {first_line(e)}")
+            report(notes[-1])
+            continue
+        clips.append((str(f.relative_to(folder)), styles[f], motion, analyze_clip(motion, styles[f])))
+    if not clips:
+        raise DanceNetError(f"none of the {len(files)} BVH clips in {folder} could be read: {notes[0]}")
+    library = MotionLibrary.from_clips(clips, tuple(notes))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    library.save(path)
+    return library, path

@@ -1,0 +1,73 @@
+"""The engine `library` (`dancenet generate SONG --engine library --library FOLDER`): dances cut from a built motion
+library (`dancenet library build FOLDER`) on the song's beats; see `choreography.py`."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from functools import lru_cache
+from pathlib import Path
+
+from ..engines import Takes
+from ..engines.styles import check_style, choose_style, load_style_model
+from ..errors import DanceNetError, GenerationCancelled
+from ..music.features import MusicAnalysis
+from ..progress import StageProgress
+from ..request import DanceRequest
+from .choreography import choreograph
+from .store import MotionLibrary, library_path, load_built
+
+
+@lru_cache(maxsize=2)
+def _load(path: Path, key: Path) -> MotionLibrary:
+    """The built library (cached per built file: a rebuilt folder has a new key)."""
+    return load_built(path)
+
+
+class LibraryEngine:
+    """Reads `request.library`, a folder of clips built with `dancenet library build`."""
+
+    name = "library"
+
+    def library(self, request: DanceRequest) -> MotionLibrary:
+        if request.library is None:
+            raise DanceNetError("the library engine needs --library FOLDER (a folder of BVH clips, built with "
+                                "`dancenet library build FOLDER`)")
+        folder = Path(request.library)
+        return _load(folder, library_path(folder) if folder.is_dir() else folder)
+
+    def styles(self, request: DanceRequest) -> list[str]:
+        return sorted({s for s in self.library(request).styles if s})
+
+    def check(self, request: DanceRequest) -> None:
+        """The library is built and loads; the style is one of its clips'; a dance cannot be continued yet."""
+        styles = self.styles(request)
+        if request.style != "auto":
+            check_style(request.style, styles)
+        if request.continue_from is not None:
+            raise DanceNetError("the library engine does not continue a dance yet; use --engine dancenet for "
+                                "--continue")
+
+    def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
+              should_cancel: Callable[[], bool]) -> Takes:
+        """A figure per bar, time-warped to the song's beats (no foot model: the frames are real capture, and the
+        model, trained on DanceNet's dances, slid them more, 0.58 -> 0.69 of contact frames)."""
+        timings: dict[str, float] = {}
+        t = time.perf_counter()
+        library = self.library(request)
+        styles = self.styles(request)
+        heard = set(styles) & set(load_style_model().styles)  # styles the music classifier can tell
+        if request.style != "auto" or heard:
+            chosen, probs = choose_style(request.style, analysis, sorted(heard) if request.style == "auto" else styles)
+        else:
+            chosen, probs = "", {}  # a library of styles no classifier knows: every clip may dance
+        timings["style_s"] = time.perf_counter() - t
+        if should_cancel():
+            raise GenerationCancelled
+        t = time.perf_counter()
+        progress("dancing", 0.0)
+        start, end = request.part(analysis.duration_s)
+        dances = choreograph(library, analysis, request.seed, start, end, request.takes, chosen or None)
+        timings["choreography_s"] = time.perf_counter() - t
+        progress("dancing", 1.0)
+        return Takes([d.motion for d in dances], chosen or "any", probs, timings=timings)
