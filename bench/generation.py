@@ -57,9 +57,9 @@ def use_torch_networks(weights: str | None) -> None:
 
 
 def sampler_speed(weights: str | None) -> dict:
-    from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.nets.dancenet import naive_run
+    from dancenet_core.runtime.sampler import CachedSampler, Sampling, music_conditioning
 
     model = DanceNetBundle.load(weights or DEFAULT_BUNDLE).model  # the naive way runs the torch model
     rf = model.cfg.receptive_field

@@ -1,7 +1,7 @@
 """Continue a dance from a frame: the kept frames stay as they were and the new ones are laid on after
 them, so the join neither jumps nor snaps.
 
-The model hears the kept frames as its own (see `model.sampler.CachedSampler.run`'s `prefix`), and the foot
+The model hears the kept frames as its own (see `runtime.sampler.CachedSampler.run`'s `prefix`), and the foot
 clean-up and smoothing run over kept and new frames together, so the new dance, decoded with the kept frames
 before it, already flows through the join; only its version of the kept frames differs a little from the kept
 frames themselves (cleaned twice, smoothed with new frames beside them). The new frames take that difference,

@@ -1,5 +1,5 @@
 """Forward kinematics in numpy (scipy's Rotation); the torch version (differentiable, for training and the foot
-model) is `model/kinematics_torch.py`, so that writing keyframes in Blender needs no torch.
+model) is `nets/kinematics_torch.py`, so that writing keyframes in Blender needs no torch.
 
 Local rotations are rotation vectors (axis * angle, radians) of each joint relative to its parent;
 joint 0's rotation is the root's world rotation. FK returns world joint positions and, on request,

@@ -18,10 +18,10 @@ import numpy as np
 from .constants import DEFAULT_TEMPERATURE
 from .engines.dancenet import foot_fixer, load_bundle, sample_dance
 from .engines.styles import load_style_model
-from .model.sampler import Sampling, music_conditioning
 from .music import madmom_dbn, madmom_nets
 from .music.audio import MADMOM_SAMPLE_RATE, Audio
 from .music.features import N_FEATURES, analyze_audio
+from .runtime.sampler import Sampling, music_conditioning
 
 WARM_AUDIO_S = 3  # one block of the analysis: both networks, chroma and the beat tracker's decode
 WARM_FRAMES = 8  # the sampler's kernel is the same for any length

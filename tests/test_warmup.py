@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 PROBE = """
 import sys
-from dancenet_core.model import sampler
+from dancenet_core.runtime import sampler
 from dancenet_core.music import madmom_dbn, madmom_nets
 from dancenet_core.warmup import warm_up
 

@@ -14,11 +14,11 @@ from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
 from ..errors import DanceNetError
 from ..generate import GenerationResult, generate_dance, shape_takes
-from ..model.runtime import DEFAULT_RUNTIME, META
 from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..render import render_motion
 from ..request import DanceRequest, add_options, options_from
 from ..rootmotion import read_dance_bvh, write_root_bone_bvh
+from ..runtime.weights import DEFAULT_RUNTIME, META
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

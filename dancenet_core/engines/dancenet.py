@@ -14,13 +14,13 @@ from scipy.ndimage import gaussian_filter1d
 from ..constants import MIN_PART_S
 from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
-from ..model.runtime import DEFAULT_RUNTIME, RuntimeBundle, RuntimeFootFixer
-from ..model.sampler import CachedSampler, Sampling, music_conditioning
 from ..motion import Motion
 from ..music.features import MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
 from ..representation import FeatureLayout, decode, encode
 from ..request import DanceRequest
+from ..runtime.sampler import CachedSampler, Sampling, music_conditioning
+from ..runtime.weights import DEFAULT_RUNTIME, RuntimeBundle, RuntimeFootFixer
 from . import Takes
 from .styles import check_style, choose_style, is_checkpoint
 

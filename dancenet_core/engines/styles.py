@@ -6,8 +6,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..errors import DanceNetError
-from ..model.runtime import STYLE_RUNTIME, RuntimeStyleModel
 from ..music.features import MusicAnalysis
+from ..runtime.weights import STYLE_RUNTIME, RuntimeStyleModel
 
 
 def is_checkpoint(path: str | Path | None) -> bool:

@@ -1,6 +1,6 @@
 """`dancenet evaluate`: the paper's comparison (Tables 3 and 4) on the test split, from this command's own runs.
 
-1. Train every model of `model/variants.py` on the training split with the same windows and the same
+1. Train every model of `nets/variants.py` on the training split with the same windows and the same
    number of steps (each in its own process, `--jobs` at a time; a finished run with the same settings is
    reused, so a second call only measures).
 2. Each model dances to the music spans of the test-split sequences (`--takes` seeds each, from the real

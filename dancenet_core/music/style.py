@@ -1,5 +1,5 @@
 """Musical style classifier (paper section 4.2) and its FC + Bi-LSTM baseline: inference without torch (the
-numpy network is `model/numpy_nets.py`, the torch one `style_torch.py`, training `training/style.py`).
+numpy network is `runtime/numpy_nets.py`, the torch one `nets/style_torch.py`, training `training/style.py`).
 
 The classifier sees 30-second windows of a song's [T, 17] classifier input (10 fps; `classifier_input`) as a
 one-channel image:
@@ -159,7 +159,7 @@ class StyleResult:
         }
 
 class StyleClassifier(ABC):
-    """What every style classifier shares, whatever runs its network (numpy at generation, `style_torch.py`'s
+    """What every style classifier shares, whatever runs its network (numpy at generation, `nets/style_torch.py`'s
     torch in training): style names, window, hop and frame rate, and a song classified window by window."""
 
     def __init__(self, styles: Sequence[str], config: dict, meta: dict | None = None) -> None:

@@ -5,4 +5,4 @@ Foot Constraint Model (`footfix`), torch forward kinematics for it and for the s
 baselines (`variants`, `baselines`), and the export of checkpoints to the arrays generation runs (`export`).
 
 Everything here needs torch; generation never imports it (import-linter holds this), except to convert a
-training checkpoint (`.pt`) a user hands it. What a Generate Dance runs, in numpy, is `model/`."""
+training checkpoint (`.pt`) a user hands it. What a Generate Dance runs, in numpy, is `runtime/`."""

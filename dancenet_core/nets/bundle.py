@@ -1,6 +1,6 @@
 """A trained DanceNet with everything generation needs: config, weights, normaliser, styles, start
 frames and the skeleton its dances are decoded onto. One file, shipped in `dancenet_core/weights/`.
-The comparison's baselines (`model/variants.py`) are saved the same way, with their `kind`.
+The comparison's baselines (`nets/variants.py`) are saved the same way, with their `kind`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 dilated residual layers conditioned on music and style, and a decoder to a Gaussian mixture plus
 foot-contact logits.
 
-`DanceNet.forward` is the teacher-forced pass used for training; `model/sampler.py` generates frame by
+`DanceNet.forward` is the teacher-forced pass used for training; `runtime/sampler.py` generates frame by
 frame with cached per-layer queues, `naive_run` (here) the way it is compared with.
 """
 
@@ -16,9 +16,9 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ..model.config import DanceNetConfig
-from ..model.numpy_nets import NumpyDanceNet, fold_batchnorm
-from ..model.sampler import WindowConditioning
+from ..runtime.config import DanceNetConfig
+from ..runtime.numpy_nets import NumpyDanceNet, fold_batchnorm
+from ..runtime.sampler import WindowConditioning
 
 
 def numpy_state(module: nn.Module) -> dict[str, np.ndarray]:

@@ -1,4 +1,4 @@
-"""Trained checkpoints (torch) -> the plain arrays generation runs on without torch (`model/runtime.py`).
+"""Trained checkpoints (torch) -> the plain arrays generation runs on without torch (`runtime/weights.py`).
 
 Training writes each runtime file beside the checkpoint it saves; `dancenet weights export` redoes it for the
 checkpoints in a folder (the shipped ones by default), e.g. after copying in new weights.
@@ -10,8 +10,8 @@ from pathlib import Path
 
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError
-from ..model.numpy_nets import NumpyFootNet, NumpyStyleNet, fold_batchnorm
-from ..model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
+from ..runtime.numpy_nets import NumpyFootNet, NumpyStyleNet, fold_batchnorm
+from ..runtime.weights import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
 from .bundle import DanceNetBundle
 from .dancenet import DanceNet, numpy_state
 from .footfix import FootFixer

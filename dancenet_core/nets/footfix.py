@@ -20,8 +20,8 @@ from torch import nn
 from ..checkpoint import load_weights, save_weights
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
-from ..model.runtime import FootChannels, floor_lift
 from ..representation import FeatureLayout, Normalizer
+from ..runtime.weights import FootChannels, floor_lift
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .kinematics_torch import rotvec_to_matrix_torch
 

@@ -1,5 +1,5 @@
 """The style classifier's torch networks (the paper's temporal conv + Bi-LSTM and the FC baseline) and the
-checkpoints training writes; generation runs the same network in numpy (`model/runtime.py`)."""
+checkpoints training writes; generation runs the same network in numpy (`runtime/weights.py`)."""
 
 from __future__ import annotations
 

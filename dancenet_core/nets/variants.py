@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from torch import nn
 
-from ..model.sampler import CachedSampler, Sampling, music_conditioning
 from ..music.features import MEL_BANDS, N_FEATURES
+from ..runtime.sampler import CachedSampler, Sampling, music_conditioning
 from .baselines import KINDS, BaselineConfig, build_baseline
 from .dancenet import DanceNet, DanceNetConfig
 

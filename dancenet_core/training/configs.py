@@ -28,7 +28,7 @@ class TrainSettings:
     settings, sized for a 2-core CPU."""
 
     data: Path | None = _option(None, "shared data folder (default ../shared/data)")
-    variant: str = _option("dancenet", "model of the paper's comparison (model/variants.py)")
+    variant: str = _option("dancenet", "model of the paper's comparison (nets/variants.py)")
     out: Path = _option(Path("runs/dancenet"), "run folder: checkpoints, log and the trained dancenet.pt")
     minutes: float = _option(100.0, "training time budget")
     steps: int = _option(6000, "planned steps (lr drops by 10 at 77%%)")

@@ -1,4 +1,4 @@
-"""Training of the Foot Constraint Model (`model/footfix.py`), `dancenet train footfix`.
+"""Training of the Foot Constraint Model (`nets/footfix.py`), `dancenet train footfix`.
 
 As the paper: real motion made to slide (Gaussian smoothing and noise), MSE + 0.1 x smoothness,
 Adam 5e-4. That alone removed only 3% of the sliding in DanceNet's dances (its feet shuffle along the floor,
@@ -41,11 +41,11 @@ from ..data.split import load_split
 from ..engines.dancenet import sample_dance
 from ..environment import default_data_dir
 from ..evaluation.metrics import CONTACT_TOE_M
-from ..model.sampler import Sampling, music_conditioning
 from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 from ..nets.export import fixer_to_runtime
 from ..nets.footfix import FootChannels, FootConstraintModel, FootFixer, ToeKinematics
 from ..representation import FeatureLayout, Normalizer
+from ..runtime.sampler import Sampling, music_conditioning
 from .configs import FootfixSettings
 
 # Lower-body joints moving less than this on average (4 mm a frame = 10 cm/s at 25 fps, twice the freeze

@@ -207,8 +207,8 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
     0.04 s (0.24 s with the earlier model)."""
     from dancenet_core.constants import DEFAULT_TEMPERATURE
     from dancenet_core.engines.dancenet import sample_dance
-    from dancenet_core.model.sampler import Sampling, music_conditioning
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from dancenet_core.runtime.sampler import Sampling, music_conditioning
 
     bundle, fixer = DanceNetBundle.load(DEFAULT_BUNDLE), FootFixer.load(WEIGHTS)
     before, after = [], []

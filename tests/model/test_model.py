@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
 from dancenet_core.nets.dancenet import DanceNet, DanceNetConfig, dancenet_loss, mixture_nll, naive_run
+from dancenet_core.runtime.sampler import CachedSampler, Sampling, music_conditioning
 
 
 def _model(mixtures: int = 2, residual_output: bool = False, input_skip: bool = False) -> DanceNet:

@@ -17,10 +17,6 @@ from dancenet_core import generate
 from dancenet_core.engines import dancenet as dancenet_engine
 from dancenet_core.engines import styles
 from dancenet_core.errors import DanceNetError
-from dancenet_core.model.config import DanceNetConfig
-from dancenet_core.model.numpy_nets import toe_heights
-from dancenet_core.model.runtime import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
-from dancenet_core.model.sampler import CachedSampler, Sampling, music_conditioning
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, MusicAnalysis, analyze_music, music_at_frames
 from dancenet_core.music.style import N_INPUTS, classifier_input
@@ -31,6 +27,10 @@ from dancenet_core.nets.footfix import FootFixer
 from dancenet_core.nets.style_torch import StyleModel, build_net
 from dancenet_core.representation import Normalizer, encode
 from dancenet_core.request import DanceRequest
+from dancenet_core.runtime.config import DanceNetConfig
+from dancenet_core.runtime.numpy_nets import toe_heights
+from dancenet_core.runtime.sampler import CachedSampler, Sampling, music_conditioning
+from dancenet_core.runtime.weights import RuntimeBundle, RuntimeFootFixer, RuntimeStyleModel
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
 REPO = Path(__file__).resolve().parents[2]

@@ -19,12 +19,12 @@ from dancenet_core import cli
 from dancenet_core.data.dance_with_melody import read_manifest
 from dancenet_core.data.split import SPLIT_FILE
 from dancenet_core.errors import DanceNetError
-from dancenet_core.model.runtime import RuntimeStyleModel
 from dancenet_core.music import style as S
 from dancenet_core.music.audio import Audio, load_audio
 from dancenet_core.music.features import analyze_audio, analyze_music
 from dancenet_core.nets import style_torch as T
 from dancenet_core.nets.export import style_to_runtime
+from dancenet_core.runtime.weights import RuntimeStyleModel
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("DANCENET_DATA", REPO.parent / "shared" / "data")) / "dance_with_melody"

@@ -2,7 +2,7 @@
 training checkpoints in `weights/`, read with `allow_pickle=False`, so a crafted file cannot run code),
 with what each needs around its network (normaliser, skeleton, style names, windows). No torch.
 
-Training writes these files from its checkpoints (`model/export.py`; `dancenet weights export` redoes it).
+Training writes these files from its checkpoints (`nets/export.py`; `dancenet weights export` redoes it).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def _normalizer(arrays: dict[str, np.ndarray]) -> Normalizer:
 
 @dataclass
 class RuntimeBundle:
-    """A trained DanceNet as generation uses it (`model/bundle.py`'s `DanceNetBundle` without torch)."""
+    """A trained DanceNet as generation uses it (`nets/bundle.py`'s `DanceNetBundle` without torch)."""
 
     model: NumpyDanceNet
     normalizer: Normalizer
@@ -206,7 +206,7 @@ class RuntimeFootFixer:
 
 
 class RuntimeStyleModel(StyleClassifier):
-    """The music style classifier on its numpy network (`music/style_torch.py`'s `StyleModel` without torch)."""
+    """The music style classifier on its numpy network (`nets/style_torch.py`'s `StyleModel` without torch)."""
 
     def __init__(self, net: NumpyStyleNet, styles: Sequence[str], config: dict, meta: dict | None = None) -> None:
         super().__init__(styles, config, meta)

@@ -2,8 +2,8 @@
 classifier and the Foot Constraint Model (its floor guard included), so that generation needs no torch.
 
 Each reads a state dict of plain arrays under torch's own names, with every BatchNorm already folded into
-the convolution before it (`fold_batchnorm`; `model/export.py` writes them). The per-frame stack of
-DanceNet runs in the numba sampler (`model/sampler.py`) from the same arrays.
+the convolution before it (`fold_batchnorm`; `nets/export.py` writes them). The per-frame stack of
+DanceNet runs in the numba sampler (`runtime/sampler.py`) from the same arrays.
 
 No numba here, measured: each network is a few large matrix products (BLAS already) and, for the two with a
 Bi-LSTM, a recurrence of 100-150 steps per batch of windows whose sigmoids and tanhs numpy runs vectorised;

@@ -1,5 +1,5 @@
-"""DanceNet's sizes and settings, apart from the torch network (`model/dancenet.py`), so that the numpy
-runtime (`model/runtime.py`) reads a checkpoint's configuration without torch."""
+"""DanceNet's sizes and settings, apart from the torch network (`nets/dancenet.py`), so that the numpy
+runtime (`runtime/weights.py`) reads a checkpoint's configuration without torch."""
 
 from __future__ import annotations
 
