@@ -22,4 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--variants", nargs="*", default=None,
                    help="a subset of the models (default: all; the flag with no names: only the shipped weights "
                    "and the real dances)")
+    p.add_argument("--library", action="store_true",
+                   help="add the motion-library engine's row (the training dances as its library)")
+    p.add_argument("--library-only", action="store_true",
+                   help="only the real dances and the motion-library engine's row (no DanceNet trained or run)")
     p.set_defaults(handler=comparison.compare)

@@ -46,6 +46,7 @@ from ..representation import decode
 from ..skeleton import BODY_JOINTS
 from . import drift
 from .dance_features import geometric_features, kinetic_features, smpl24_positions
+from .library_row import library_row
 from .metrics import (
     body_relative_segments,
     diversity,
@@ -248,7 +249,7 @@ def compare(args: argparse.Namespace) -> int:
     data = args.data or default_data_dir()
     if not data.is_dir():
         raise DanceNetError(f"no dataset at {data}; pass --data DIR (the shared data folder)")
-    variants = list(VARIANTS) if args.variants is None else args.variants
+    variants = [] if args.library_only else list(VARIANTS) if args.variants is None else args.variants
     unknown = [v for v in variants if v not in VARIANTS]
     if unknown:
         raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
@@ -281,20 +282,37 @@ def compare(args: argparse.Namespace) -> int:
             tp = [mel_pairs[p.seq] for p in test_pairs]
         rows.append(dance_row(v, VARIANTS[v], bundle, tp, beats, args.takes, temperature))
         print(f"  {v}: {len(rows[-1].dances)} dances")
-    rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
-                          args.takes, temperature))
-    rows.append(dance_row("dancenet_shipped_footfix", "DanceNet, shipped weights + foot model", shipped,
-                          test_pairs, beats, args.takes, temperature, footfix=True))
+    if not args.library_only:
+        rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
+                              args.takes, temperature))
+        rows.append(dance_row("dancenet_shipped_footfix", "DanceNet, shipped weights + foot model", shipped,
+                              test_pairs, beats, args.takes, temperature, footfix=True))
+    if args.library or args.library_only:
+        train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
+        row = DanceSet("library", "Motion library engine (training dances)")
+        row.dances, row.styles, row.beats_s, row.info = library_row(train_pairs, test_pairs, data, shipped.skeleton,
+                                                                    fps, args.takes)
+        rows.append(row)
     table = measure(rows, ref_feats, fps, style_net)
 
     args.out.mkdir(parents=True, exist_ok=True)
     seconds = time.perf_counter() - t0
     md = markdown(table, seconds, args.steps, args.takes, len(ref_feats["hit"]))
+    if "library" in table:
+        lib = table["library"]
+        md += (f"\nMotion library engine: a library of {lib['library_min']} min (the training dances); share of "
+               f"frames from runs of one clip longer than {lib['long_run_bars']} bars {lib['long_run_share']:.3f} "
+               f"(mean per dance), longest run {lib['longest_run_s']:.1f} s; largest joint step at a cut "
+               f"{lib['max_transition_step_over_p99']:.2f}x the capture's 99th percentile; largest time-warp "
+               f"{lib['max_warp']:.1%}. Per dance in comparison.json.\n")
     write_text(args.out / "comparison.md", md)
     write_text(args.out / "comparison.json", json.dumps(
         {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,
          "seed": args.seed, "test_sequences": [p.seq for p in test_pairs], "reference_segments":
          len(ref_feats["hit"]), "rows": table}, indent=1) + "\n")
+    print(md)
+    if args.library_only:
+        return 0
     # Figure 3b and the contact sheet on the first test waltz (else the first test sequence).
     i = next((i for i, p in enumerate(test_pairs) if p.style == "waltz"), 0)
     gen_row = next(r for r in rows if r.name == "dancenet_shipped")
@@ -305,7 +323,6 @@ def compare(args: argparse.Namespace) -> int:
     contact_sheet([(f"real {test_pairs[i].seq}", real.dances[i][first_20s]),
                    ("DanceNet", foot_row.dances[i * args.takes][first_20s])],
                   args.out / "contact_sheet.png", cols=6, rows=2, width=240, height=200)
-    print(md)
     print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png, contact_sheet.png "
           f"({seconds / 60:.1f} min)")
     return 0

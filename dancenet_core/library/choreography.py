@@ -45,6 +45,7 @@ class Settings:
     pose: float = 1.0
     velocity: float = 0.15
     contact: float = 0.3
+    cut: float = 0.2  # every cut costs this much more than carrying on with the clip
 
 
 DEFAULT_SETTINGS = Settings()
@@ -141,8 +142,11 @@ def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.n
 
 
 def _ranks(x: np.ndarray) -> np.ndarray:
-    """Each value's rank as a fraction in [0, 1] (ties share the lower rank)."""
-    return np.searchsorted(np.sort(x), x) / max(1, len(x) - 1)
+    """Each value's rank as a fraction in [0, 1] (ties share their mean rank: all equal, all 0.5)."""
+    if len(x) < 2:
+        return np.full(len(x), 0.5)
+    s = np.sort(x)
+    return (np.searchsorted(s, x, "left") + np.searchsorted(s, x, "right") - 1) / (2.0 * (len(x) - 1))
 
 
 def _weights(settings: Settings, dim: int) -> np.ndarray:
@@ -184,10 +188,11 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
             ends = np.minimum(starts + n_prev, nb - 1)
             d = sq[ends][:, None] + sq[starts][None, :] - 2.0 * feats[ends] @ feats[starts].T
             d = np.maximum(d, 0.0)
-            d[ends[:, None] == starts[None, :]] = 0.0  # the clip's own continuation
             if scale is None:
                 scale = float(np.median(d)) or 1.0
-            transition_cache[n_prev] = d / scale
+            d = d / scale + settings.cut
+            d[ends[:, None] == starts[None, :]] = 0.0  # the clip's own continuation
+            transition_cache[n_prev] = d
         return transition_cache[n_prev]
 
     def unary(b: int) -> np.ndarray:

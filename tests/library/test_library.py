@@ -1,0 +1,218 @@
+"""The motion library engine (issue 25) on clips the tests make: a dancer swinging legs and arms and stepping
+forward at a known tempo, so the beats, bars and cuts are known; and bad libraries, which answer in one line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dancenet_core.beats import kinematic_velocity
+from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
+from dancenet_core.cli import main
+from dancenet_core.data.motion_library import build_library
+from dancenet_core.library.analysis import analyze_clip
+from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
+from dancenet_core.library.store import MotionLibrary
+from dancenet_core.motion import Motion
+from dancenet_core.music.features import FPS as MUSIC_FPS
+from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
+from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX
+
+FPS = 25.0
+
+
+def dancer(seconds: float, bpm: float, fps: float = FPS, amplitude: float = 0.5, phase: float = 0.0) -> Motion:
+    """Legs and arms swinging a full cycle every two beats (their speed dips at each beat), the pelvis bobbing and
+    stepping forward with each beat."""
+    t = np.arange(int(round(seconds * fps))) / fps
+    w = np.pi * bpm / 60.0  # a cycle every two beats
+    s = np.sin(w * t + phase)
+    rot = np.zeros((len(t), DEFAULT_SKELETON.num_joints, 3))
+    rot[:, JOINT_INDEX["left_hip"], 0] = amplitude * s
+    rot[:, JOINT_INDEX["right_hip"], 0] = -amplitude * s
+    rot[:, JOINT_INDEX["left_knee"], 0] = 0.3 * amplitude * (1 + s)
+    rot[:, JOINT_INDEX["left_shoulder"], 2] = -1.2 + 0.4 * s
+    rot[:, JOINT_INDEX["right_shoulder"], 2] = 1.2 + 0.4 * s
+    rot[:, 0, 1] = 0.2 * np.sin(0.3 * t)  # a slow turn
+    root = np.stack([0.05 * np.sin(w * t), 0.9 + 0.02 * np.cos(2 * w * t + 2 * phase),
+                     0.4 * t - 0.4 / (2 * w) * np.sin(2 * w * t + 2 * phase)], axis=1)
+    return Motion(rot, root, fps)
+
+
+def song(seconds: float, bpm: float, meter: int = 4, loud_from: float | None = None) -> MusicAnalysis:
+    """A song's analysis: beats from 0.3 s, a downbeat every `meter` beats, onsets on the beats (louder after
+    `loud_from` seconds)."""
+    beats = np.arange(0.3, seconds, 60.0 / bpm)
+    n = int(seconds * MUSIC_FPS)
+    features = np.zeros((n, N_FEATURES), np.float32)
+    frames = (beats * MUSIC_FPS).astype(int)
+    features[frames[frames < n], ONSET_COL] = 1.0
+    if loud_from is not None:
+        features[int(loud_from * MUSIC_FPS) :, ONSET_COL] *= 3.0
+    return MusicAnalysis(features, beats, beats[::meter], 60.0 / float(np.median(np.diff(beats))), seconds)
+
+
+def library_of(*clips: tuple[str, Motion]) -> MotionLibrary:
+    return MotionLibrary.from_clips([(name, "", m, analyze_clip(m)) for name, m in clips])
+
+
+@pytest.fixture(scope="module")
+def library() -> MotionLibrary:
+    return library_of(*[(f"clip{k}", dancer(40, bpm, amplitude=0.3 + 0.1 * k, phase=k))
+                        for k, bpm in enumerate((100, 110, 120, 104))])
+
+
+def test_a_clips_beats_and_tempo_are_its_own() -> None:
+    m = dancer(30, 120)
+    a = analyze_clip(m)
+    assert a.tempo_bpm == pytest.approx(120, rel=0.05)
+    speed = np.convolve(kinematic_velocity(m.positions()[:, :BODY_JOINTS]), np.ones(3) / 3, "same")
+    at = np.round(a.beats[1:-1]).astype(int)
+    assert (speed[at] < np.median(speed)).mean() > 0.9  # cut where the dancer's speed dips
+    assert a.meter in (3, 4) and a.downbeat[a.downbeat.argmax() :: a.meter].all()
+    assert a.features.shape == (len(a.beats), a.features.shape[1]) and np.isfinite(a.features).all()
+
+
+def test_figures_start_on_the_songs_downbeats(library: MotionLibrary) -> None:
+    music = song(60, 108)
+    dance = choreograph(library, music, seed=1, start_s=0.0, end_s=60.0)[0]
+    assert dance.motion.num_frames == 60 * FPS
+    downs = music.downbeat_times
+    starts = np.array([f["song_s"][0] for f in dance.report.figures[1:]])  # the first starts with the part
+    assert np.abs(starts[:, None] - downs[None]).min(axis=1).max() <= 1.0 / FPS
+    assert dance.report.max_warp <= 0.15 + 1e-6
+
+
+def test_no_joint_jumps_at_a_cut(library: MotionLibrary) -> None:
+    dance = choreograph(library, song(90, 112), seed=3, settings=Settings(noise=1.0))[0]
+    assert dance.report.cuts, "the plan should cut between clips"
+    steps = [np.linalg.norm(np.diff(library.clip(c).positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+             for c in range(library.num_clips)]
+    p99 = np.percentile(np.concatenate(steps), 99, axis=0)
+    step = np.linalg.norm(np.diff(dance.motion.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+    at_cuts = np.concatenate([step[c - 1 : c + 11] for c in dance.report.cuts])
+    assert (at_cuts <= 1.2 * p99).all()  # the capture's 99th percentile, with a 20% margin for the warp
+
+
+def test_without_blending_a_cut_would_jump(library: MotionLibrary) -> None:
+    """The test above can fail: the clips differ enough that a hard cut jumps past the capture's steps."""
+    a, b = library.clip(0).positions()[:, :BODY_JOINTS], library.clip(3).positions()[:, :BODY_JOINTS]
+    p99 = np.percentile(np.linalg.norm(np.diff(a, axis=0), axis=-1), 99, axis=0)
+    rel = (b[200] - b[200, :1]) - (a[100] - a[100, :1])
+    assert (np.linalg.norm(rel, axis=-1) > 1.2 * p99).any()
+
+
+def test_seeds_give_different_dances_and_a_seed_the_same(library: MotionLibrary) -> None:
+    music = song(40, 110)
+    one, again = (choreograph(library, music, seed=5)[0] for _ in range(2))
+    other = choreograph(library, music, seed=6)[0]
+    assert np.array_equal(one.motion.rotations, again.motion.rotations)
+    assert not np.allclose(one.motion.rotations, other.motion.rotations)
+
+
+def test_the_copied_run_report_adds_up(library: MotionLibrary) -> None:
+    one_clip = library_of(("long", dancer(120, 110)))
+    dance = choreograph(one_clip, song(60, 110), seed=0, settings=Settings(noise=0.0))[0]
+    r = dance.report
+    assert r.longest_run_bars > LONG_RUN_BARS and r.long_run_share > 0.8  # one clip, played straight through
+    mixed = choreograph(library, song(60, 110), seed=0, settings=Settings(noise=2.0))[0].report
+    assert mixed.long_run_share < r.long_run_share
+    assert 0.0 <= mixed.long_run_share <= 1.0 and mixed.longest_run_s <= 60.0
+    assert len(mixed.figures) == len(song_grid(song(60, 110), 0.0, 60.0).bars)
+
+
+def test_the_dance_follows_the_musics_energy(library: MotionLibrary) -> None:
+    """Loud bars take the library's energetic figures."""
+    dance = choreograph(library, song(80, 110, loud_from=40), seed=0, settings=Settings(noise=0.0))[0]
+    speed = kinematic_velocity(dance.motion.positions()[:, :BODY_JOINTS])
+    half = dance.motion.num_frames // 2
+    assert speed[half:].mean() > speed[:half].mean()
+
+
+def test_the_root_path_carries_on_across_cuts(library: MotionLibrary) -> None:
+    dance = choreograph(library, song(60, 110), seed=2, settings=Settings(noise=1.0))[0]
+    step = np.linalg.norm(np.diff(dance.motion.root_positions[:, [0, 2]], axis=0), axis=-1)
+    assert step.max() < 3 * np.percentile(step, 95)
+    assert np.linalg.norm(dance.motion.root_positions[-1, [0, 2]]) > 5.0  # it travels, cut after cut
+
+
+def _cli(*args: str) -> int:
+    return main(list(args))
+
+
+def test_bad_libraries_answer_in_one_line_or_dance(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _cli("library", "build", str(empty)) == 2
+    assert "no BVH clips" in capsys.readouterr().err
+
+    short = tmp_path / "short"
+    short.mkdir()
+    write_bvh(short / "two_seconds.bvh", dancer(2, 110))
+    assert _cli("library", "build", str(short)) == 0  # built; too short for a figure is said when dancing
+    library, _ = build_library(short)
+    with pytest.raises(Exception, match="no clip with 5 beats or more"):
+        choreograph(library, song(20, 110))
+
+    odd = tmp_path / "odd"
+    odd.mkdir()
+    write_bvh_data(odd / "snake.bvh", BvhData(("a", "b", "c"), (-1, 0, 1), np.eye(3), (
+        ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
+        ("Zrotation", "Xrotation", "Yrotation"), ("Zrotation", "Xrotation", "Yrotation")), (), 0.04,
+        np.zeros((50, 12))))
+    capsys.readouterr()
+    assert _cli("library", "build", str(odd)) == 2
+    err = capsys.readouterr().err
+    assert "not a skeleton the library reads" in err and len(err.strip().splitlines()) == 1
+
+    mixed = tmp_path / "mixed"
+    (mixed / "waltz").mkdir(parents=True)
+    write_bvh(mixed / "waltz" / "at30.bvh", dancer(20, 100).resampled(30))
+    write_bvh(mixed / "waltz" / "at60_cm.bvh", dancer(20, 100, phase=1.0).resampled(60), scale=100.0)
+    write_bvh_data(mixed / "snake.bvh", BvhData(("a", "b"), (-1, 0), np.eye(3)[:2], (
+        ("Xposition", "Yposition", "Zposition"), ("Zrotation",)), (), 0.04, np.zeros((5, 4))))
+    assert _cli("library", "build", str(mixed)) == 0
+    library, _ = build_library(mixed)
+    assert library.num_clips == 2 and library.styles == ["waltz", "waltz"] and len(library.notes) == 1
+    assert library.fps == FPS and library.duration_s == pytest.approx(40, abs=0.2)
+    heights = library.root_positions[:, 1]
+    assert heights.min() > 0.7 and heights.max() < 1.1  # the centimetre clip read in metres
+    dance = choreograph(library, song(30, 100, meter=3), seed=0, style="waltz")[0]
+    assert dance.motion.num_frames == 30 * FPS
+
+
+def test_a_z_up_clip_is_turned_upright(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    m = dancer(10, 110)
+    rot = m.rotations.copy()
+    from scipy.spatial.transform import Rotation
+
+    turn = Rotation.from_euler("x", 90, degrees=True)  # Y up -> Z up
+    rot[:, 0] = (turn * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
+    (tmp_path / "z").mkdir()
+    write_bvh(tmp_path / "z" / "z_up.bvh", Motion(rot, turn.apply(m.root_positions), m.fps))
+    library, _ = build_library(tmp_path / "z")
+    pos = library.clip(0).positions()
+    assert (pos[:, JOINT_INDEX["head"], 1] > pos[:, 0, 1]).all()
+
+
+def test_a_dance_from_the_real_capture(shared_data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two training waltzes of Dance with Melody as the library, one of its songs' analysis as the music."""
+    from dancenet_core.beats import motion_beats
+    from dancenet_core.data.dance_with_melody import load_positions, read_manifest
+    from dancenet_core.data.fit import fit_sequence
+
+    seqs = {s.seq: s for s in read_manifest(shared_data)}
+    clips = []
+    for seq in ("DANCE_W_1", "DANCE_W_4"):
+        motion, _ = fit_sequence(load_positions(seqs[seq])[:750], seqs[seq].fps, steps=20)
+        clips.append((seq, "waltz", motion, analyze_clip(motion, "waltz")))
+    library = MotionLibrary.from_clips(clips)
+    music = song(30, 88, meter=3)
+    dance = choreograph(library, music, seed=0)[0]
+    beats = motion_beats(dance.motion.positions()[:, :BODY_JOINTS], FPS) / FPS
+    assert dance.motion.num_frames == 30 * FPS and len(beats) > 10
