@@ -172,15 +172,15 @@ def test_cli_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
 def test_worker_processes_draw_the_same_frames() -> None:
     """Two worker processes, each with its own OpenGL context, give the frames one process draws, in
     order (a dance long enough for the parallel path, drawn small to stay quick)."""
-    from dancenet_core import render
+    from dancenet_core.render import frames
 
-    n = render._PARALLEL_MIN_FRAMES + 7  # a last chunk shorter than the others
+    n = frames._PARALLEL_MIN_FRAMES + 7  # a last chunk shorter than the others
     rot = np.zeros((n, DEFAULT_SKELETON.num_joints, 3))
     rot[:, JOINT_INDEX["left_shoulder"], 2] = np.linspace(0.0, np.pi / 2, n)
     root = ROOT + np.linspace(0.0, 1.0, n)[:, None] * [1.0, 0.0, 0.0]
     motion = Motion(rot, root, 25.0)
-    one = list(render.iter_frames(motion, None, 64, 36, workers=1))
-    two = list(render.iter_frames(motion, None, 64, 36, workers=2))
+    one = list(frames.iter_frames(motion, None, 64, 36, workers=1))
+    two = list(frames.iter_frames(motion, None, 64, 36, workers=2))
     assert len(two) == n
     assert max(_differs(a, b) for a, b in zip(one, two, strict=True)) == 0
     assert _differs(two[0], two[-1]) > 50  # the frames really differ along the dance
@@ -191,6 +191,9 @@ def test_the_stage_draws_what_pyrender_draws() -> None:
     that pyrender's scene renderer gives of the same figure, floor, shadows, lights and camera."""
     from dancenet_core import render
     from dancenet_core.kinematics import fk_numpy
+    from dancenet_core.render.camera import _look_at
+    from dancenet_core.render.geometry import _FLOOR_MARGIN, _blob_texture, _grid_texture
+    from dancenet_core.render.stage import _Stage
 
     if render.gl_platform() != "egl":
         pytest.skip("pyrender draws without multisampling on OSMesa, so its picture is no reference there")
@@ -200,7 +203,7 @@ def test_the_stage_draws_what_pyrender_draws() -> None:
     motion.rotations[1, JOINT_INDEX["right_knee"], 0] = -1.2  # a foot off the floor: a smaller, fainter shadow
     floor, camera = render.floor_height(motion), render.camera_path(motion, W, H)[1]
     pos, rot = fk_numpy(motion.skeleton, motion.rotations[1:], motion.root_positions[1:])
-    stage = render._Stage(motion, W, H, floor)
+    stage = _Stage(motion, W, H, floor)
     fast = stage.render(pos[0], rot[0], camera)
     stage.close()  # before pyrender's own context: closing one ends EGL's display for both
     scene = pr.Scene(bg_color=[*(c / 255 for c in BACKGROUND_RGB), 1.0], ambient_light=stage._AMBIENT)
@@ -211,15 +214,15 @@ def test_the_stage_draws_what_pyrender_draws() -> None:
     corners, uv = render.floor_quad(motion, floor)
     sampler = pr.Sampler(magFilter=pr.GLTF.LINEAR, minFilter=pr.GLTF.LINEAR_MIPMAP_LINEAR,
                          wrapS=pr.GLTF.REPEAT, wrapT=pr.GLTF.REPEAT)
-    grid = pr.Texture(source=np.repeat(render._grid_texture()[..., None], 3, axis=2), source_channels="RGB",
+    grid = pr.Texture(source=np.repeat(_grid_texture()[..., None], 3, axis=2), source_channels="RGB",
                       sampler=sampler)
     scene.add(pr.Mesh([pr.Primitive(
         positions=corners, normals=np.tile([0.0, 1.0, 0.0], (4, 1)), texcoord_0=uv,
         indices=np.array([[0, 1, 2], [0, 2, 3]]),
         material=pr.MetallicRoughnessMaterial(baseColorTexture=grid, metallicFactor=0.0, roughnessFactor=1.0))]))
     corners, alpha = stage.shadow_quads(pos[0])
-    blob = np.zeros((*render._blob_texture().shape, 4), np.uint8)
-    blob[..., 3] = render._blob_texture()
+    blob = np.zeros((*_blob_texture().shape, 4), np.uint8)
+    blob[..., 3] = _blob_texture()
     n = len(corners) // 4
     scene.add(pr.Mesh([pr.Primitive(
         positions=corners, texcoord_0=(stage.shadow_corners[:, [0, 2]] + 1) / 2,
@@ -229,10 +232,10 @@ def test_the_stage_draws_what_pyrender_draws() -> None:
             baseColorFactor=[0.0, 0.0, 0.0, 1.0], alphaMode="BLEND", metallicFactor=0.0,
             baseColorTexture=pr.Texture(source=blob, source_channels="RGBA")))]))
     for direction, intensity in stage._LIGHTS:
-        pose = render._look_at(-np.asarray(direction), np.zeros(3))
+        pose = _look_at(-np.asarray(direction), np.zeros(3))
         scene.add(pr.DirectionalLight(intensity=intensity), pose=pose)
     unit = render.figure_scale(motion.skeleton)
-    scene.add(pr.PerspectiveCamera(yfov=render.YFOV, znear=0.05 * unit, zfar=4 * render._FLOOR_MARGIN * unit),
+    scene.add(pr.PerspectiveCamera(yfov=render.YFOV, znear=0.05 * unit, zfar=4 * _FLOOR_MARGIN * unit),
               pose=camera.pose)
     reference = pr.OffscreenRenderer(W, H)
     expected, _ = reference.render(scene)
@@ -247,13 +250,14 @@ def test_tessellation_follows_size_on_screen() -> None:
     """Segments around a part keep its facets within 0.5 px of the outline: 4 for a sub-pixel finger,
     10 for a 7-px limb (chord gap 7 * (1 - cos(pi / 10)) = 0.34 px; 8 would leave 0.53), capped at 24."""
     from dancenet_core import render
+    from dancenet_core.render.geometry import _build_figure, _segments
 
-    assert render._segments(0.3) == 4
-    assert render._segments(7.0) == 10
+    assert _segments(0.3) == 4
+    assert _segments(7.0) == 10
     assert 7.0 * (1 - np.cos(np.pi / 8)) > 0.5 > 7.0 * (1 - np.cos(np.pi / 10))
-    assert render._segments(1e4) == 24
+    assert _segments(1e4) == 24
     unit = render.figure_scale(DEFAULT_SKELETON)
-    small, large = (render._build_figure(DEFAULT_SKELETON, unit, ppm) for ppm in (60.0, 360.0))
+    small, large = (_build_figure(DEFAULT_SKELETON, unit, ppm) for ppm in (60.0, 360.0))
     assert len(small.faces) < len(large.faces) / 2
 
 

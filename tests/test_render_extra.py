@@ -18,6 +18,7 @@ from made_up import small_motion
 
 from dancenet_core import render
 from dancenet_core.errors import DanceNetError
+from dancenet_core.render import frames
 
 
 @pytest.fixture(autouse=True)
@@ -71,8 +72,8 @@ def test_a_render_workers_error_comes_back_as_its_text(monkeypatch: pytest.Monke
             raise ctypes.ArgumentError("argument 2: no handler", ctypes.byref(ctypes.c_int()))
 
     motion = small_motion(8)
-    monkeypatch.setattr(render, "_Stage", BrokenStage)
-    monkeypatch.setattr(render, "_worker_state", {"motion": motion, "size": (32, 24), "floor": 0.0, "cams": []})
+    monkeypatch.setattr(frames, "_Stage", BrokenStage)
+    monkeypatch.setattr(frames, "_worker_state", {"motion": motion, "size": (32, 24), "floor": 0.0, "cams": []})
     with pytest.raises(RuntimeError, match="the preview's renderer failed: ArgumentError: .*no handler") as e:
-        render._worker_draw(np.arange(2))
+        frames._worker_draw(np.arange(2))
     assert str(pickle.loads(pickle.dumps(e.value))) == str(e.value)
