@@ -1,5 +1,5 @@
-"""The add-on's warm-up thread (the first Generate Dance's imports and numba compiles, done when the add-on is
-enabled: issue 27) and the lock a Generate Dance shares with it.
+"""The add-on's warm-up thread (the first Generate Dance's imports and weights, and the numba kernels, compiled
+by a process of its own meanwhile: dancenet_core/warmup.py; issue 27) and the lock a Generate Dance shares with it.
 
 Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not made to race
 one another, and a pytest process running Generate Dance beside a warm-up ended in a segmentation fault. Each
@@ -29,8 +29,12 @@ def _warm_up(stop: threading.Event) -> None:
 
 
 def start() -> None:
-    """Warm up on a thread of its own (each registration has its own stop signal)."""
+    """Warm up on a thread of its own (each registration has its own stop signal). The kernels are deferred
+    first (dancenet_core.jit): until the warm-up has them compiled, a click runs their numpy twins."""
     global _stop, _thread
+    from dancenet_core import jit
+
+    jit.defer()
     _stop = threading.Event()
     _thread = threading.Thread(target=_warm_up, args=(_stop,), name="dancenet-warm-up")
     _thread.start()

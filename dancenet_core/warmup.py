@@ -1,34 +1,43 @@
 """Everything a first Generate Dance waits for that is not the song itself: the imports (madmom, scipy), the
 numba kernels (compiled, or read from numba's on-disk cache) and the shipped weights. The Blender add-on runs
-`warm_up` on a thread of its own when it is enabled, so the first click after installing does not spend its
-time compiling (issue 27: 17-30 s from cold on the 2-core machine, 2.5 s once compiled).
+`warm_up` on a thread of its own when it is enabled, so that a click later does not spend its time on them.
+
+Where kernels are deferred (dancenet_core.jit: the add-on), a Python process of its own, started first and
+niced, compiles them into numba's cache while this one imports and loads the rest. A click meanwhile runs the
+kernels' numpy twins (the same numbers) and waits for no compile; each kernel is used from numba's cache as
+soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the kernels are
+loaded here, a step at a time (compiled here if the process failed).
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
-they get the argument types a real run gives them; nothing is written to the music cache."""
+they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
+are imported inside the steps, so that the compiling process starts before this one imports them."""
 
 from __future__ import annotations
 
 import contextlib
+import subprocess
+import sys
+import threading
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
-from .constants import DEFAULT_TEMPERATURE
-from .engines.dancenet import foot_fixer, load_bundle, sample_dance
-from .engines.styles import load_style_model
-from .music import madmom_dbn, madmom_nets
-from .music.audio import MADMOM_SAMPLE_RATE, Audio
-from .music.features import N_FEATURES, analyze_audio
-from .runtime.sampler import Sampling, music_conditioning
+from . import jit
 
 WARM_AUDIO_S = 3  # one block of the analysis: both networks, chroma and the beat tracker's decode
 WARM_FRAMES = 8  # the sampler's kernel is the same for any length
 
 
 def _analysis() -> None:
-    """madmom's networks through the compiled loop, the downbeat tracker's compiled decode, chroma and mel."""
+    """The analysis' imports, madmom's networks, the onset and beat networks' loop, the downbeat tracker's
+    decode, chroma and mel."""
+    from pathlib import Path
+
+    from .music.audio import MADMOM_SAMPLE_RATE, Audio
+    from .music.features import analyze_audio
+
     noise = 0.1 * np.random.default_rng(0).standard_normal(WARM_AUDIO_S * MADMOM_SAMPLE_RATE)
     analyze_audio(Audio(noise.astype(np.float32), MADMOM_SAMPLE_RATE, MADMOM_SAMPLE_RATE, 1, Path("warm-up")),
                   workers=1)
@@ -36,6 +45,12 @@ def _analysis() -> None:
 
 def _dance() -> None:
     """The weights (kept by their loaders' caches for the real run), the sampler's kernel, the foot model."""
+    from .constants import DEFAULT_TEMPERATURE
+    from .engines.dancenet import foot_fixer, load_bundle, sample_dance
+    from .engines.styles import load_style_model
+    from .music.features import N_FEATURES
+    from .runtime.sampler import Sampling, music_conditioning
+
     bundle = load_bundle()
     load_style_model()
     cond = music_conditioning(bundle.model, np.zeros((WARM_FRAMES, N_FEATURES), np.float32), 0)
@@ -44,12 +59,81 @@ def _dance() -> None:
     foot_fixer()(takes[0])
 
 
+def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:
+    """Each kernel by name: the step that compiles or loads it, and its numba dispatchers."""
+    from .music import madmom_dbn, madmom_nets
+    from .runtime import sampler
+
+    return {
+        "networks": (madmom_nets.load_compiled, madmom_nets.KERNELS),
+        "beat decode": (madmom_dbn.load_compiled, madmom_dbn.KERNELS),
+        "sampler": (_dance, sampler.KERNELS),
+    }
+
+
+def compile_kernels() -> None:
+    """Compile every kernel into numba's on-disk cache, printing each one's name once it is there (what the
+    process `warm_up` starts runs)."""
+    for name, (step, _) in _kernels().items():
+        step()
+        print(name, flush=True)
+
+
+# Niced: a Generate Dance clicked meanwhile (its twins) comes first on a busy machine.
+_CHILD = ("import os, sys; sys.path[:0] = sys.argv[1:]; hasattr(os, 'nice') and os.nice(10); "
+          "from dancenet_core.warmup import compile_kernels; compile_kernels()")
+POLL_S = 0.2  # how often the wait for that process looks at `cancelled`
+
+
+def _compile_elsewhere() -> subprocess.Popen:
+    """This interpreter (in Blender, Blender's own Python) on this process's import path, isolated from the
+    user's Python settings; numba's cache folder comes with the environment. A thread marks each kernel
+    cached (dancenet_core.jit) as the process names it."""
+    child = subprocess.Popen([sys.executable, "-I", "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             creationflags=getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0))  # fmt: skip
+    threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
+    return child
+
+
+def _mark_cached(names: IO[str]) -> None:
+    kernels = _kernels()
+    for line in names:
+        if line.strip() in kernels:
+            jit.mark_cached(*kernels[line.strip()][1])
+
+
+def _finished(child: subprocess.Popen, cancelled: Callable[[], bool]) -> bool:
+    """Wait for the compiling process; False (and the process stopped) if cancelled meanwhile."""
+    while not cancelled():
+        try:
+            child.wait(timeout=POLL_S)
+        except subprocess.TimeoutExpired:
+            continue
+        if child.returncode:
+            error = (child.stderr.read().strip().splitlines() or ["?"])[-1]
+            print(f"DanceNet: compiling the kernels apart failed ({error}); compiling them here")
+        return True
+    child.kill()
+    child.wait()
+    return False
+
+
 def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContextManager | None = None) -> None:
     """Load or compile what a Generate Dance needs, checking `cancelled` between steps (a compile cannot be
     stopped midway, so each kernel is a step of its own), each step holding `lock`: a caller that runs real
-    generations on other threads holds the same lock around them, so the two never race."""
-    for step in (madmom_nets.load_compiled, madmom_dbn.load_compiled, _analysis, _dance):
+    generations on other threads holds the same lock around them, so the two never race. With the kernels
+    deferred, another process compiles them meanwhile (see above)."""
+    held = lock or contextlib.nullcontext()
+    child = _compile_elsewhere() if not jit.may_compile() else None
+    if child is not None:
+        if not cancelled():
+            with held:
+                _dance()  # the weights, while the kernels compile (the sampler's twin on 8 frames)
+        if not _finished(child, cancelled):
+            return
+    for step in (*(step for step, _ in _kernels().values()), _analysis):
         if cancelled():
             return
-        with lock or contextlib.nullcontext():
+        with held, jit.compiling():
             step()

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import jit
 from ..atomic import atomic_open
 from ..environment import cache_root, default_workers, end_with_parent
 from ..errors import DanceNetError, first_line
@@ -225,8 +226,9 @@ def analyze_audio(audio: Audio, *, workers: int | None = None, progress: Progres
         raise ValueError(f"analyze_audio needs {MADMOM_SAMPLE_RATE} Hz audio")
     x, n = audio.samples, len(audio.samples)
     blocks = _blocks(n, BLOCK_S * MADMOM_SAMPLE_RATE, CONTEXT_S * MADMOM_SAMPLE_RATE)
-    madmom_nets.load_compiled()  # before the workers fork, so they inherit them
-    madmom_dbn.load_compiled()
+    if jit.may_compile():  # else the kernels not yet compiled run their numpy twins (dancenet_core/jit.py)
+        madmom_nets.load_compiled()  # before the workers fork, so they inherit them
+        madmom_dbn.load_compiled()
     with _executor(workers, len(blocks)) as ex:
         jobs = [(x[s0:s1], c0 - s0, c1 - s0, c1 == n) for s0, c0, c1, s1 in blocks]
         parts = _run_all(ex, _network_block, jobs, lambda f: report(0.9 * f))

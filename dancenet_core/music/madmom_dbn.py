@@ -23,6 +23,8 @@ from numba import njit
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .. import jit
+
 LANES = 16  # the multi states' loop runs 2 vectors of 8 float64 a pass: blocks padded to whole passes, so
 # that no scalar remainder follows each source's pass (a fifth of the time with 60-state blocks)
 
@@ -90,6 +92,56 @@ def _backtrack(bt: np.ndarray, first_state: np.ndarray, multi_index: np.ndarray,
     return path
 
 
+def _viterbi_numpy(
+    densities: np.ndarray, om_pointers: np.ndarray, first_state: np.ndarray, first_log_prob: np.ndarray,
+    irregular: np.ndarray, multi: np.ndarray, blocks: np.ndarray, sources: np.ndarray, rows: np.ndarray,
+    log_probs: np.ndarray, log_initial: np.ndarray, bt: np.ndarray,
+) -> tuple[int, float]:
+    """`_viterbi` in numpy, a frame at a time (jit.py: what runs before it is compiled): the same sums in the
+    same order, and per multi state the first source of the greatest sum in madmom's order (argmax returns
+    the first), so the same path and log probability. A NaN sum never wins there, nor here."""
+    n_m = len(multi)
+    prev = log_initial.copy()
+    cur = np.empty(len(first_state), np.float64)
+    first_lp, irregular_first = first_log_prob[1:], first_state[irregular]
+    irregular_lp, irregular_om = first_log_prob[irregular], om_pointers[irregular]
+    lanes = multi >= 0
+    multi_om, multi_first = om_pointers[multi], first_state[multi]  # a padding lane's -1 wraps, as in numba
+    spans = [(blocks[i, 0], blocks[i + 1, 0], blocks[i, 1], blocks[i + 1, 1]) for i in range(len(blocks) - 1)]
+    tables = [log_probs[rows[j0] + np.arange(j1 - j0)[:, None] * (m1 - m0) + np.arange(m1 - m0)]
+              for m0, m1, j0, j1 in spans]  # fmt: skip
+    best, arg = np.empty(n_m, np.float64), np.empty(n_m, np.int32)
+    for frame in range(densities.shape[0]):
+        d = densities[frame]
+        p = prev[:-1] + first_lp + d[0]
+        cur[1:] = np.where(p > -np.inf, p, -np.inf)
+        p = prev[irregular_first] + irregular_lp + d[irregular_om]
+        cur[irregular] = np.where(p > -np.inf, p, -np.inf)
+        density = d[multi_om]
+        for (m0, m1, j0, j1), table in zip(spans, tables, strict=True):
+            p = prev[sources[j0:j1], None] + table + density[m0:m1]
+            p[np.isnan(p)] = -np.inf
+            i = np.argmax(p, axis=0)
+            top = p[i, np.arange(m1 - m0)]
+            best[m0:m1] = top
+            arg[m0:m1] = np.where(top > -np.inf, sources[j0:j1][i], multi_first[m0:m1])
+        cur[multi[lanes]] = best[lanes]
+        bt[frame] = arg
+        prev, cur = cur, prev
+    state = int(np.argmax(prev))
+    return state, prev[state]
+
+
+def _backtrack_numpy(bt: np.ndarray, first_state: np.ndarray, multi_index: np.ndarray, state: int) -> np.ndarray:
+    """`_backtrack` in Python (a lookup a frame)."""
+    path = np.empty(bt.shape[0], np.uint32)
+    for frame in range(bt.shape[0] - 1, -1, -1):
+        path[frame] = state
+        m = multi_index[state]
+        state = first_state[state] if m < 0 else bt[frame, m]
+    return path
+
+
 class CompiledHMM:
     """Drop-in for a madmom HiddenMarkovModel where only `viterbi` is called (as the DBN trackers do)."""
 
@@ -140,12 +192,16 @@ class CompiledHMM:
         bt = np.empty((len(observations), len(self.multi)), np.int32)
         with np.errstate(divide="ignore"):
             log_initial = np.log(self.initial_distribution)
-        state, log_prob = _viterbi(densities, self.om_pointers, *self._tm, log_initial, bt)
+        viterbi = jit.pick(_viterbi, _viterbi_numpy)
+        state, log_prob = viterbi(densities, self.om_pointers, *self._tm, log_initial, bt)
         if np.isinf(log_prob):
             warnings.warn("-inf log probability during Viterbi decoding cannot find a valid path", RuntimeWarning,
                           stacklevel=2)
             return np.empty(0, np.uint32), log_prob
-        return _backtrack(bt, self._tm[0], self.multi_index, state), log_prob
+        return jit.pick(_backtrack, _backtrack_numpy)(bt, self._tm[0], self.multi_index, state), log_prob
+
+
+KERNELS = (_viterbi, _backtrack)  # what jit.pick chooses between, for the warm-up
 
 
 def load_compiled() -> None:

@@ -27,6 +27,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numba import njit
 
+from .. import jit
+
 _LOG2E, _LN2_HI, _LN2_LO = 1.44269504088896338700e00, 6.93147180369123816490e-01, 1.90821492927058770002e-10
 _POW2_FROM = -1081  # _POW2[n - _POW2_FROM] = 2**(n - 1) for every n that _exp can reach, subnormals and 0 included
 _POW2 = np.ldexp(1.0, np.arange(_POW2_FROM - 1, 1024))
@@ -132,6 +134,59 @@ def _scan(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.ndarray, 
                 out[c // 2, t, c % 2, j] = h[j]
 
 
+def _exp_numpy(x: np.ndarray) -> np.ndarray:
+    """`_exp` on an array, the same operations in the same order (so the same bits); exp(710) is inf here
+    too (the caller silences numpy's overflow warning)."""
+    x = np.minimum(np.maximum(x, -746.0), 710.0)
+    n = np.floor(x * _LOG2E + 0.5)
+    r = (x - n * _LN2_HI) - n * _LN2_LO
+    p = r * (1.0 / 6227020800.0) + 1.0 / 479001600.0
+    for c in (1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0, 1.0 / 40320.0, 1.0 / 5040.0, 1.0 / 720.0,
+              1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0):  # fmt: skip
+        p *= r
+        p += c
+    p *= _POW2[n.astype(np.int64) - _POW2_FROM]
+    p *= 2.0
+    return p
+
+
+def _scan_numpy(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.ndarray, h0: np.ndarray,
+                c0: np.ndarray, backward: np.ndarray, lstm: bool, out: np.ndarray) -> None:
+    """`_scan` in numpy, every chain a step at a time together: the same sums in the same order (the
+    recurrent product added row by row), the same exp, so the same output bit for bit (dancenet_core/jit.py:
+    what runs before the loop is compiled). The padding units are left out: they stay zero and reach nothing."""
+    _, n_t, n_b, width = pre.shape
+    n_c, n_h = h0.shape
+    n_gates, stride = width // n_h, peep.shape[2]
+    chains = np.arange(n_c)
+    steps = np.arange(n_t)[:, None]
+    # [T, C, G*H]: each chain's input at each of its steps (backward chains from the last frame), plus bias
+    inputs = pre[chains // n_b, np.where(backward, n_t - 1 - steps, steps), chains % n_b] + bias
+    # [H, C, G*H]: rows outermost, each row's products of all chains one contiguous array
+    rec = rec.reshape(n_c, n_h, n_gates, stride)[..., :n_h].reshape(n_c, n_h, width).transpose(1, 0, 2).copy()
+    p_in, p_forget, p_out = (np.ascontiguousarray(peep[:, i, :n_h]) for i in range(3))
+    h, s = h0.astype(np.float64), c0.astype(np.float64)
+    products = np.empty((n_h, n_c, width))
+    for step in range(n_t):  # under np.errstate(over="ignore"): see __call__
+        g = inputs[step].copy()
+        for row in np.multiply(h.T[:, :, None], rec, out=products):
+            g += row
+        if lstm:
+            g_in, g_forget, g_cell, g_out = (g[:, q * n_h : (q + 1) * n_h] for q in range(4))
+            e = _exp_numpy(np.stack([-(g_in + s * p_in), -(g_forget + s * p_forget), 2.0 * g_cell]))
+            e1, e2, e3 = 1.0 / (1.0 + e[0]), 1.0 / (1.0 + e[1]), 1.0 - 2.0 / (e[2] + 1.0)
+            s = e3 * e1 + s * e2
+            e = _exp_numpy(np.stack([-(g_out + s * p_out), 2.0 * s]))
+            h = (1.0 - 2.0 / (e[1] + 1.0)) * (1.0 / (1.0 + e[0]))
+        else:
+            h = 1.0 - 2.0 / (_exp_numpy(2.0 * g) + 1.0)
+        t = np.where(backward, n_t - 1 - step, step)
+        out[chains // 2, t, chains % 2] = h
+
+
+KERNELS = (_scan,)  # what jit.pick chooses between, for the warm-up
+
+
 def load_compiled() -> None:
     """Load the compiled loop (numba's on-disk cache, or a compile) into this process, so that worker
     processes forked from it start with it instead of each loading it again (~0.5 s)."""
@@ -202,16 +257,19 @@ class _Recurrent:
         n_c, n_in, width = self.weights.shape
         n_n, n_t, n_h = n_c // 2, x.shape[-2], self.h0.shape[1]
         out = np.empty((n_n, n_t, 2, n_h), np.float64)
-        for n0 in range(0, n_n, self.GROUP):
-            nets, chains = slice(n0, n0 + self.GROUP), slice(2 * n0, 2 * (n0 + self.GROUP))
+        scan = jit.pick(_scan, _scan_numpy)
+        group = self.GROUP if scan is _scan else n_n  # the twin's time goes into numpy's calls per frame: all at once
+        for n0 in range(0, n_n, group):
+            nets, chains = slice(n0, n0 + group), slice(2 * n0, 2 * (n0 + group))
             if x.ndim == 2:  # first depth: one product for every network, direction and gate of the group
                 w = self.weights[chains].transpose(1, 0, 2).reshape(n_in, -1)
                 pre = (x @ w).reshape(1, n_t, -1, width)
             else:  # later depths: each network reads its own previous depth, both directions from it
                 w = self.weights[chains].reshape(-1, 2, n_in, width).transpose(0, 2, 1, 3).reshape(-1, n_in, 2 * width)
                 pre = (x[nets] @ w).reshape(-1, n_t, 2, width)  # [N, T, direction, G*H]
-            _scan(pre, self.bias[chains], self.rec[chains], self.peep[chains], self.h0[chains], self.c0[chains],
-                  self.backward[chains], self.lstm, out[nets])
+            with np.errstate(over="ignore"):  # the twin's exp(710) = inf, as the loop's
+                scan(pre, self.bias[chains], self.rec[chains], self.peep[chains], self.h0[chains],
+                     self.c0[chains], self.backward[chains], self.lstm, out[nets])
         return out.reshape(n_n, n_t, 2 * n_h)  # [N, T, fwd H | bwd H]
 
 

@@ -12,6 +12,7 @@ gives the same dance on any machine.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -19,6 +20,7 @@ from typing import Protocol
 import numba
 import numpy as np
 
+from .. import jit
 from ..progress import Progress
 from .config import DanceNetConfig
 from .numpy_nets import NumpyDanceNet
@@ -112,7 +114,8 @@ def _generate(  # a compiled kernel takes its arrays flat
                 for c in range(r):
                     zf = a[c] + queues[li, k, b, c] + layer_cond[t, li, c]
                     zg = a[r + c] + queues[li, k, b, r + c] + layer_cond[t, li, r + c]
-                    gated[li, c] = np.tanh(zf) * (0.5 + 0.5 * np.tanh(0.5 * zg))  # tanh x sigmoid
+                    # tanh x sigmoid, in float64 (libm's tanh, which the numpy twin calls as math.tanh)
+                    gated[li, c] = np.tanh(np.float64(zf)) * (0.5 + 0.5 * np.tanh(0.5 * zg))
                 queues[li, k, b] = a[2 * r :]
                 x = x + gated[li] @ w_res[li] + b_res[li]
             s = np.maximum(gated.reshape(n_layers * r) @ skip_w + skip_b, zero)
@@ -136,12 +139,12 @@ def _generate(  # a compiled kernel takes its arrays flat
                 m = max(m, out[i])
             total = 0.0
             for i in range(mixtures):
-                total += np.exp(out[i] - m)
+                total += np.exp(np.float64(out[i] - m))
             u = unif[t, b] * total
             comp = mixtures - 1
             acc = 0.0
             for i in range(mixtures):
-                acc += np.exp(out[i] - m)
+                acc += np.exp(np.float64(out[i] - m))
                 if temperature <= 0.0:  # deterministic: the most likely component's mean
                     if out[i] == m:
                         comp = i
@@ -153,15 +156,93 @@ def _generate(  # a compiled kernel takes its arrays flat
             ls0 = mixtures + mixtures * cont + comp * cont
             for j in range(cont):
                 if modelled[j]:
-                    raw = out[ls0 + j] - min_log_sigma
+                    raw = np.float64(out[ls0 + j] - min_log_sigma)
                     soft = raw if raw > 20.0 else np.log1p(np.exp(raw))
-                    sigma = np.exp(min_log_sigma + soft)
+                    sigma = np.float32(np.exp(np.float64(min_log_sigma) + soft))
                     frames[t, b, j] = out[mu0 + j] + sigma * temperature * eps[t, b, j]
                 else:
                     frames[t, b, j] = 0.0
             c0 = mixtures + 2 * mixtures * cont
             for j in range(frames.shape[2] - cont):
                 frames[t, b, cont + j] = 1.0 if out[c0 + j] > 0.0 else 0.0
+
+
+def _generate_numpy(
+    frames, outputs, t0, t1, queues, dilations,
+    enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
+    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b,
+    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher, residual,
+) -> None:  # fmt: skip
+    """`_generate` in numpy and Python (dancenet_core.jit: what runs before it is compiled), the same numbers
+    bit for bit: each product through the BLAS call numba makes for `vector @ matrix` (scipy's sgemv, no
+    transpose, on the matrix's transpose), the float32 and float64 steps as the kernel does them, and its
+    exp, log1p and tanh through Python's math module, which calls the C library the kernel calls."""
+    from scipy.linalg.blas import sgemv  # the library numba's BLAS calls go to
+
+    def dot(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+        return sgemv(1.0, m.T, v)
+
+    def tanh(v: np.ndarray) -> np.ndarray:
+        return np.fromiter(map(math.tanh, v.tolist()), np.float64, len(v))
+
+    n_layers, r = w_np.shape[0], w_res.shape[1]
+    zero = np.float32(0.0)
+    gated = np.empty((n_layers, r), np.float32)
+    kept = np.flatnonzero(modelled)
+    c0 = mixtures + 2 * mixtures * cont
+    for t in range(t0, t1):
+        slot = t - 1
+        for b in range(frames.shape[1]):
+            h = np.maximum(dot(frames[t - 1, b], enc_w0) + enc_b0, zero)
+            h = np.maximum(dot(h, enc_w1) + enc_b1, zero)
+            x = dot(h, enc_w2) + enc_b2
+            for li in range(n_layers):
+                k = slot % dilations[li]
+                a = dot(x, w_np[li])
+                z = a[: 2 * r] + queues[li, k, b, : 2 * r] + layer_cond[t, li]
+                gated[li] = tanh(z[:r]) * (0.5 + 0.5 * tanh(0.5 * z[r:].astype(np.float64)))
+                queues[li, k, b] = a[2 * r :]
+                x = x + dot(gated[li], w_res[li]) + b_res[li]
+            s = np.maximum(dot(gated.reshape(n_layers * r), skip_w) + skip_b, zero)
+            s = np.maximum(dot(s, dec_w0) + dec_b0, zero)
+            out = dot(s, dec_w1) + dec_b1
+            if in_w.shape[0] > 0:
+                out += dot(frames[t - 1, b], in_w) + in_b
+            if residual:
+                for i in range(mixtures):
+                    out[mixtures + i * cont + kept] += frames[t - 1, b, kept]
+            if outputs.shape[0] > 0:
+                outputs[t, b] = out
+            if teacher.shape[0] > 0:
+                frames[t, b] = teacher[t, b]
+                continue
+            m = out[0]
+            for i in range(1, mixtures):
+                m = max(m, out[i])
+            total = 0.0
+            for i in range(mixtures):
+                total += math.exp(out[i] - m)
+            u = float(unif[t, b]) * total
+            comp, acc = mixtures - 1, 0.0
+            for i in range(mixtures):
+                acc += math.exp(out[i] - m)
+                if temperature <= 0.0:
+                    if out[i] == m:
+                        comp = i
+                        break
+                elif u < acc:
+                    comp = i
+                    break
+            mu0, ls0 = mixtures + comp * cont, mixtures + mixtures * cont + comp * cont
+            sigma = np.zeros(cont, np.float32)
+            for j, raw in zip(kept, (out[ls0 + kept] - min_log_sigma).tolist(), strict=True):
+                soft = raw if raw > 20.0 else math.log1p(math.exp(raw))
+                sigma[j] = math.exp(float(min_log_sigma) + soft)
+            frames[t, b, :cont] = np.where(modelled, out[mu0 : mu0 + cont] + sigma * temperature * eps[t, b], 0.0)
+            frames[t, b, cont:] = np.where(out[c0 : c0 + frames.shape[2] - cont] > 0.0, 1.0, 0.0)
+
+
+KERNELS = (_generate,)  # what jit.pick chooses between, for the warm-up
 
 
 class CachedSampler:
@@ -244,6 +325,7 @@ class CachedSampler:
         rng = sampling.rng if sampling is not None else np.random.default_rng(0)
         temperature = sampling.temperature if sampling is not None else 1.0
         cont = cfg.continuous_dim
+        generate = jit.pick(_generate, _generate_numpy)
         for t0 in range(1, t_total, CHUNK):
             t1 = min(t_total, t0 + CHUNK)
             # Draws for this chunk only (bounded memory), indexed by absolute frame.
@@ -255,7 +337,7 @@ class CachedSampler:
             split = min(max(t0, len(kept)), t1)  # frames before `split` are kept ones
             for a, b, forced in ((t0, split, kept), (split, t1, tf)):
                 if a < b:
-                    _generate(frames, outputs, a, b, queues, self.dilations, *self.enc,
+                    generate(frames, outputs, a, b, queues, self.dilations, *self.enc,
                               self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
                               *self.input_skip, cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
                               np.float32(temperature), eps, unif, forced, cfg.residual_output)
