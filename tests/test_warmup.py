@@ -36,3 +36,32 @@ def test_a_generate_after_the_warm_up_compiles_nothing(tmp_path: Path) -> None:
     assert "CANCELLED [0, 0, 0, 0]" in out
     assert "WARM [1, 1, 1, 1]" in out
     assert "AFTER [1, 1, 1, 1]" in out
+
+DEFERRED = """
+import sys
+from dancenet_core import jit
+from dancenet_core.runtime import sampler
+from dancenet_core.music import madmom_dbn, madmom_nets
+from dancenet_core.warmup import warm_up
+from dancenet_core.generate import generate_dance
+from dancenet_core.request import DanceRequest
+
+kernels = (madmom_nets._scan, madmom_dbn._viterbi, madmom_dbn._backtrack, sampler._generate)
+jit.defer()
+generate_dance(DanceRequest(sys.argv[1], end_s=4.0))
+print("TWINS", [len(k.signatures) for k in kernels])
+warm_up()
+print("WARM", [len(k.signatures) for k in kernels], sorted(map(sampler.KERNELS.__contains__, jit._cached)))
+"""
+
+
+def test_deferred_kernels_are_compiled_apart(tmp_path: Path) -> None:
+    """As in the add-on: a Generate Dance before the warm-up compiles nothing (the twins dance); the warm-up's
+    own process compiles every kernel into numba's cache (each marked as it is written), and this one loads
+    them from there."""
+    env = os.environ | {"DANCENET_CACHE": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    out = subprocess.run([sys.executable, "-c", DEFERRED, str(ROOT / "examples" / "example_song.ogg")], cwd=ROOT,
+                         env=env, capture_output=True, text=True, check=True).stdout  # fmt: skip
+    assert "TWINS [0, 0, 0, 0]" in out
+    assert "WARM [1, 1, 1, 1] [False, False, False, True]" in out
+    assert len(list((tmp_path / "numba").rglob("*.nbi"))) == 4
