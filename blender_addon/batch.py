@@ -38,7 +38,7 @@ def _addon() -> SimpleNamespace:
         package = importlib.util.module_from_spec(spec)
         sys.modules[here.name] = package
         spec.loader.exec_module(package)
-    modules = ("pipeline", "export", "render")
+    modules = ("pipeline", "song", "export", "render")
     return SimpleNamespace(**{m: importlib.import_module(f"{here.name}.{m}") for m in modules})
 
 
@@ -53,23 +53,12 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    from dancenet_core.constants import DEFAULT_TEMPERATURE  # after the add-on has set up (see `main`)
+    from dancenet_core.request import add_options  # after the add-on has set up (see `main`)
 
     p = argparse.ArgumentParser(prog="batch.py", description="Generate dances for songs, one folder each.")
     p.add_argument("songs", nargs="+", type=Path, help="audio files")
     p.add_argument("--out", type=Path, required=True, help="output folder (one subfolder per song)")
-    p.add_argument("--style", default="auto", help="dance style, or auto (the classifier picks)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--temperature", type=float, default=DEFAULT_TEMPERATURE,
-                   help=f"1 = as the model learnt the dancers, lower = calmer (default {DEFAULT_TEMPERATURE})")
-    p.add_argument("--takes", type=int, default=1, help="dances per song, one action each")
-    p.add_argument("--root-motion", choices=("travel", "in-place", "root-bone"), default="travel",
-                   help="travel (as danced), in-place, or root-bone (a root bone carries path and heading)")
-    p.add_argument("--start", type=float, default=0.0, metavar="SECONDS", help="dance from this second of the song")
-    p.add_argument("--end", type=float, default=None, metavar="SECONDS", help="dance up to this second of the song")
-    p.add_argument("--no-footfix", dest="footfix", action="store_false", help="skip the foot clean-up")
-    p.add_argument("--fps", type=int, choices=(24, 25, 30, 50, 60),
-                   help="scene frame rate, slerp-resampled (default: the model's own rate, no resampling)")
+    add_options(p, {"fps": "scene frame rate, slerp-resampled (default: the engine's own rate, no resampling)"})
     p.add_argument("--fbx", action="store_true", help="also write <song>.fbx")
     p.add_argument("--bvh", action="store_true", help="also write <song>.bvh")
     p.add_argument("--render", action="store_true", help="also render <song>.mp4 (Workbench, with the song)")
@@ -82,22 +71,21 @@ def run_song(
     addon: SimpleNamespace, song: Path, out: Path, args: argparse.Namespace, generator: Callable[..., Any] | None
 ) -> str:
     """Generate, save and export one song into the folder `out`; returns its summary line. Raises on failure."""
+    from dancenet_core.request import DanceRequest, options_from
+
     pipeline = addon.pipeline
     started = time.perf_counter()
-    song = pipeline.check_song(song)
+    song = addon.song.check_song(song)
     generator = generator or pipeline.load_generator()
     # An empty factory scene, the preferences kept: read_factory_settings resets them too, which disables the
     # installed extensions, and Blender then deletes their wheels (an installed DanceNet's core among them).
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     context = bpy.context
     scene = context.scene
-    request = pipeline.GenerationRequest(
-        song, args.style, args.seed, args.temperature, args.takes, args.footfix, args.start, args.end
-    )
-    result = generator(**request.kwargs())
+    request = DanceRequest(song, **options_from(args))
+    result = generator(request)
     scene.render.fps, scene.render.fps_base = args.fps or round(result.motions[0].fps), 1.0
-    placement = pipeline.Placement(root_motion=args.root_motion)
-    applied = pipeline.apply_result(context, pipeline.Plan(request, placement), result)
+    applied = pipeline.apply_result(context, pipeline.Plan(request), result)
 
     out.mkdir(parents=True, exist_ok=True)
     rig = bpy.data.objects[applied.rig]

@@ -557,9 +557,10 @@ def apply_motion(
     keyed at rest in the other modes, so a take never inherits another take's root pose. A control rig
     (Rigify, Auto-Rig Pro: `rigcontrols`) is keyed on its controls instead of the mapped bones.
     """
-    from dancenet_core.rootmotion import apply_mode, split_root
+    from dancenet_core.generate import shape_take  # the command line's shaping too: one output path
+    from dancenet_core.rootmotion import split_root
 
-    motion = apply_mode(motion.resampled(fps), root_motion)
+    motion = shape_take(motion, fps, root_motion)
     controls = rigcontrols.find(rig.data.bones.keys(), bone_map)
     if controls is not None:
         return _key_controls(rig, motion, bone_map, controls, action_name, frame_start, root_motion == "root-bone")

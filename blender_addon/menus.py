@@ -6,6 +6,8 @@ from __future__ import annotations
 import bpy
 from bl_operators.presets import AddPresetBase
 
+from dancenet_core.request import panel_options
+
 PRESET_SUBDIR = "dancenet/settings"
 
 
@@ -28,7 +30,7 @@ class DANCENET_OT_preset_add(AddPresetBase, bpy.types.Operator):
     preset_defines = ["props = bpy.context.scene.dancenet"]
     # How to dance, not what to dance to (the song, the armature and the frames belong to the file).
     preset_values = [f"props.{name}" for name in (
-        "style", "seed", "temperature", "takes", "footfix", "add_markers", "root_motion", "target", "bone_map",
+        "style", *(name for name, _default, _option in panel_options()), "add_markers", "target", "bone_map",
         "with_mesh",
     )]  # fmt: skip
 

@@ -12,7 +12,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, export, pipeline, rig
+from . import bonemap, export, job, pipeline, rig, rigchoice, takes
 
 _REDRAW_AREAS = frozenset({"VIEW_3D", "SEQUENCE_EDITOR", "PREFERENCES"})
 
@@ -63,8 +63,8 @@ class _Generate:
     def _begin(self, context: bpy.types.Context, plan: pipeline.Plan) -> None:
         """Start the worker and the timer that polls it."""
         self._plan = plan
-        # The core (and torch) is imported on the worker thread too, so the first run does not freeze the UI.
-        self._job = pipeline.GenerationJob(pipeline.load_generator, plan.request)
+        # The core is imported on the worker thread too (seconds on a first run), so the UI does not freeze.
+        self._job = job.GenerationJob(pipeline.load_generator, plan.request)
         self._job.start()
         runtime = context.window_manager.dancenet
         runtime.running, runtime.cancel_requested = True, False
@@ -96,7 +96,7 @@ class _Generate:
             return {"PASS_THROUGH"}
         self._end(context)
         if self._job.error is not None:
-            self.report({"ERROR"}, pipeline.error_message(self._job.error))
+            self.report({"ERROR"}, job.error_message(self._job.error))
             return {"CANCELLED"}
         try:
             applied = pipeline.apply_result(context, self._plan, self._job.result)
@@ -129,7 +129,7 @@ class DANCENET_OT_continue(_Generate, bpy.types.Operator):
     def poll(cls, context: bpy.types.Context) -> bool:
         rig_obj = export_target(context)
         anim = rig_obj.animation_data if rig_obj is not None else None
-        return super().poll(context) and anim is not None and pipeline.take_info(anim.action) is not None
+        return super().poll(context) and anim is not None and takes.take_info(anim.action) is not None
 
     def plan(self, context: bpy.types.Context) -> pipeline.Plan:
         return pipeline.prepare_continue(context.scene, export_target(context))
@@ -147,10 +147,10 @@ class DANCENET_OT_choose_take(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         rig_obj = export_target(context)
         action = bpy.data.actions.get(self.action)
-        if rig_obj is None or action is None or action not in [a for _t, a in pipeline.takes_of(rig_obj)]:
+        if rig_obj is None or action is None or action not in [a for _t, a in takes.takes_of(rig_obj)]:
             self.report({"ERROR"}, f"'{self.action}' is not a take on the DanceNet target rig")
             return {"CANCELLED"}
-        pipeline.choose_take(rig_obj, action)
+        takes.choose_take(rig_obj, action)
         self.report({"INFO"}, f"Playing take '{action.name}'")
         return {"FINISHED"}
 
@@ -250,7 +250,7 @@ class DANCENET_OT_edit_bone_map(bpy.types.Operator):
 def _map_to_text(props: Any) -> bpy.types.Text:
     """The chosen map as it resolves on the target (each joint -> the bone it found, then the joints it did
     not find as written) in a new text block, which becomes the panel's map."""
-    chosen = pipeline.current_map(props)
+    chosen = rigchoice.current_map(props)
     bones = dict(chosen.bones)
     if props.armature is not None:
         found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
@@ -300,7 +300,7 @@ class DANCENET_OT_list_missing_joints(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         props = context.scene.dancenet
         try:
-            chosen = pipeline.current_map(props)
+            chosen = rigchoice.current_map(props)
             _, skipped = bonemap.resolve(chosen, [b.name for b in props.armature.data.bones], props.armature.name)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
@@ -310,7 +310,7 @@ class DANCENET_OT_list_missing_joints(bpy.types.Operator):
             return {"FINISHED"}
         for entry in skipped:  # one line each in the Info editor; the status bar keeps the summary below
             self.report({"INFO"}, f"Not on this rig: {entry}")
-        self.report({"INFO"}, pipeline.missing_summary(skipped))
+        self.report({"INFO"}, rigchoice.missing_summary(skipped))
         return {"FINISHED"}
 
 
@@ -331,11 +331,11 @@ class DANCENET_OT_save_bone_map(bpy.types.Operator):
 
         props = context.scene.dancenet
         try:
-            chosen = pipeline.current_map(props)
+            chosen = rigchoice.current_map(props)
             if props.armature is None:
                 raise DanceNetError("Pick the target armature whose bone map to save")
-            found, _ = pipeline.resolve_map(props.armature, chosen)
-            folder = pipeline.saved_maps_dir()
+            found, _ = rigchoice.resolve_map(props.armature, chosen)
+            folder = rigchoice.saved_maps_dir()
             folder.mkdir(parents=True, exist_ok=True)
             path = folder / f"{safe_stem(self.name, 'bone map')}.json"
             write_text(path, json.dumps({"name": self.name, "bones": found}, indent=2) + "\n")

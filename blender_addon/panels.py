@@ -6,9 +6,10 @@ from __future__ import annotations
 import bpy
 
 from dancenet_core.errors import DanceNetError
+from dancenet_core.request import panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import bonemap, operators, pipeline
+from . import bonemap, operators, rigchoice, takes
 from .menus import DANCENET_MT_presets
 from .rigdef import REQUIRED_JOINTS
 
@@ -27,7 +28,7 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     controls to give a joint another bone and to save the map."""
     box = layout.box().column(align=True)
     try:
-        chosen = pipeline.current_map(props)
+        chosen = rigchoice.current_map(props)
     except DanceNetError as e:
         box.label(text=str(e), icon="ERROR")
         return
@@ -45,7 +46,7 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     optional = [j for j in unmatched if j not in REQUIRED_JOINTS]  # as the dance's report counts them
     if optional:  # one line, whatever the count: the list itself goes to the Info editor on request
         row = box.row(align=True)
-        row.label(text=pipeline.missing_summary(optional), icon="INFO")
+        row.label(text=rigchoice.missing_summary(optional), icon="INFO")
         row.operator("dancenet.list_missing_joints", text="", icon="TEXT")
     row = box.row(align=True)
     row.prop(props, "fix_joint", text="")
@@ -77,10 +78,10 @@ class DANCENET_UL_takes(bpy.types.UIList):
                      propname: str) -> tuple[list[int], list[int]]:  # fmt: skip
         """Only the tracks holding a take (a user's own tracks stay in the NLA editor), filtered by name."""
         tracks = list(getattr(data, propname))
-        takes = {track.as_pointer() for track, _ in pipeline.takes_of(data.id_data)}
+        ours = {track.as_pointer() for track, _ in takes.takes_of(data.id_data)}
         by_name = bpy.types.UI_UL_list.filter_items_by_name(self.filter_name, self.bitflag_filter_item, tracks)
         shown = by_name or [self.bitflag_filter_item] * len(tracks)
-        flags = [flag if t.as_pointer() in takes else 0 for t, flag in zip(tracks, shown, strict=True)]
+        flags = [flag if t.as_pointer() in ours else 0 for t, flag in zip(tracks, shown, strict=True)]
         return flags, list(range(len(tracks) - 1, -1, -1))  # newest (top track) first
 
 
@@ -144,13 +145,10 @@ class _Dance(_SubPanel):
         props = context.scene.dancenet
         col = self.layout.column()
         col.prop(props, "style")
-        col.prop(props, "seed")
-        col.prop(props, "temperature")
-        col.prop(props, "takes")
-        col.prop(props, "footfix")
+        for name, _default, _option in panel_options():  # the request's settings, in its order
+            col.prop(props, name)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)
-        col.prop(props, "root_motion")
         col.prop(props, "use_part")
         if props.use_part:
             row = col.row(align=True)
@@ -187,7 +185,7 @@ class _Takes(_SubPanel):
     def poll(cls, context: bpy.types.Context) -> bool:
         """Shown once the rig has a take."""
         rig_obj = operators.export_target(context)
-        return rig_obj is not None and bool(pipeline.takes_of(rig_obj))
+        return rig_obj is not None and bool(takes.takes_of(rig_obj))
 
     def draw(self, context: bpy.types.Context) -> None:
         """The takes on the rig's NLA tracks; the chosen one plays, the others are muted."""

@@ -9,10 +9,10 @@ from typing import Any
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from dancenet_core.constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE
+from dancenet_core.request import Option, panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import operators, pipeline
+from . import operators, pipeline, takes
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
 _style_items: list[tuple[str, str, str, int]] = []
@@ -57,16 +57,16 @@ def _get_take_index(_self: Any) -> int:
     if not tracks:
         return -1
     active = rig_obj.animation_data.action
-    return next((tracks.index(t) for t, action in pipeline.takes_of(rig_obj) if action == active), -1)
+    return next((tracks.index(t) for t, action in takes.takes_of(rig_obj) if action == active), -1)
 
 
 def _set_take_index(_self: Any, index: int) -> None:
     """A click on a take in the list plays it, as Choose Take does; a user's own track is never chosen."""
     rig_obj, tracks = _take_tracks()
     if 0 <= index < len(tracks):
-        for track, action in pipeline.takes_of(rig_obj):
+        for track, action in takes.takes_of(rig_obj):
             if track == tracks[index]:
-                pipeline.choose_take(rig_obj, action)
+                takes.choose_take(rig_obj, action)
 
 
 # The song may be given relative to the .blend ("//song.ogg", read through bpy.path.abspath); Blender 4.5+ warns
@@ -75,6 +75,20 @@ _BLEND_RELATIVE = (
     {"PATH_SUPPORTS_BLEND_RELATIVE"} if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties
     else set()
 )
+
+
+def _setting(default: Any, option: Option) -> Any:
+    """The panel property of a request setting (`dancenet_core.request.panel_options`): its label, help, limits
+    and choices come from the request, so a new setting needs no code here."""
+    common = {"name": option.label, "default": default, "description": option.help[:1].upper() + option.help[1:]}
+    if option.choices:
+        return EnumProperty(items=list(option.choices), **common)
+    if option.kind is bool:
+        return BoolProperty(**common)
+    top = option.panel_max if option.panel_max is not None else option.maximum
+    if option.kind is int:
+        return IntProperty(min=int(option.minimum), max=min(int(top), 2**31 - 1), **common)
+    return FloatProperty(min=option.minimum, max=top, soft_max=option.soft_max or top, **common)
 
 
 class DanceNetSettings(bpy.types.PropertyGroup):
@@ -89,35 +103,12 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     music_file: StringProperty(name="Song", subtype="FILE_PATH", description="The song to dance to",
                                options={"ANIMATABLE"} | _BLEND_RELATIVE)
     style: EnumProperty(name="Style", items=_styles, description="Dance style (Auto: chosen from the music)")
-    seed: IntProperty(
-        name="Seed", min=0, default=0, description="Another seed, another dance to the same song"
-    )
-    temperature: FloatProperty(
-        name="Temperature", min=0.0, max=MAX_TEMPERATURE, soft_max=1.5, default=DEFAULT_TEMPERATURE,
-        description="1: as the model learnt the dancers. Lower: calmer, smaller moves; higher: bolder, wilder",
-    )  # fmt: skip
-    takes: IntProperty(
-        name="Takes", min=1, max=8, default=1, description="Dances generated at once, one action each"
-    )
-    footfix: BoolProperty(
-        name="Foot Clean-up", default=True, description="Remove foot sliding and floor contact errors"
-    )
     use_part: BoolProperty(
         name="Part of the Song", default=False,
         description="Dance only between two timeline frames (a sound strip's trim is always honoured)",
     )
     part_start: IntProperty(name="From Frame", default=1, description="First timeline frame to dance")
     part_end: IntProperty(name="To Frame", default=250, description="Last timeline frame to dance")
-    root_motion: EnumProperty(
-        name="Root Motion",
-        items=[
-            ("travel", "Travelling", "The dancer moves across the floor as danced"),
-            ("in-place", "In Place", "The hips' path across the floor removed; turns and height kept"),
-            ("root-bone", "Root Bone", "A root bone on the floor carries the path and heading (game engines); "
-             "a new rig gets one"),
-        ],
-        default="travel",
-    )
     target: EnumProperty(
         name="Target",
         items=[
@@ -179,7 +170,7 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         """The last analysis, if it was of `song`."""
         if not self.analysis or not song:
             return None
-        data = pipeline.stored_json(self.analysis, dict)  # a damaged or crafted file: no analysis
+        data = takes.stored_json(self.analysis, dict)  # a damaged or crafted file: no analysis
         if not (data and isinstance(data.get("song"), str) and isinstance(data.get("style"), str)
                 and isinstance(data.get("tempo_bpm"), int | float) and isinstance(data.get("probabilities"), dict)
                 and all(isinstance(k, str) and isinstance(v, int | float) for k, v in data["probabilities"].items())):
@@ -196,6 +187,7 @@ class DanceNetRuntime(bpy.types.PropertyGroup):
     cancel_requested: BoolProperty()
 
 
+DanceNetSettings.__annotations__.update({name: _setting(default, o) for name, default, o in panel_options()})
 CLASSES = (DanceNetSettings, DanceNetRuntime)
 
 

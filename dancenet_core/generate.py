@@ -88,10 +88,13 @@ def shape_takes(motions: list[Motion], request: DanceRequest) -> list[Motion]:
     resampled ones), and the root motion applied (in place; a root bone is a layout of the dance as danced,
     made by the BVH writer or the add-on)."""
     kept = request.continue_from
-    if kept is not None:  # the join on the engine's frame grid, where the new dancing starts
-        join = round(request.at_s * motions[0].fps) / motions[0].fps
-        kept = kept.resampled(request.fps or kept.fps)
-        motions = [keep_original(kept, m, join) for m in motions]
-    elif request.fps is not None:
-        motions = [m.resampled(request.fps) for m in motions]
-    return [apply_mode(m, request.root_motion) for m in motions]
+    if kept is None:
+        return [shape_take(m, request.fps, request.root_motion) for m in motions]
+    join = round(request.at_s * motions[0].fps) / motions[0].fps  # on the engine's frame grid
+    kept = kept.resampled(request.fps or kept.fps)
+    return [shape_take(keep_original(kept, m, join), None, request.root_motion) for m in motions]
+
+
+def shape_take(motion: Motion, fps: float | None, root_motion: str) -> Motion:
+    """One take at `fps` (None: at its own rate) with its root motion applied (see `shape_takes`)."""
+    return apply_mode(motion if fps is None else motion.resampled(fps), root_motion)

@@ -13,9 +13,6 @@ from .atomic import atomic_open
 from .kinematics import fk_numpy
 from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, MIRROR_INDEX, PARENTS, EndSite, Skeleton
 
-# The frame rates animators and game engines work in; `--fps` offers these (film, PAL, NTSC, 50/60 Hz).
-FRAME_RATES: tuple[int, ...] = (24, 25, 30, 50, 60)
-
 
 @dataclass
 class Motion:

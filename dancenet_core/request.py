@@ -12,14 +12,15 @@ import argparse
 from collections.abc import Iterator
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .constants import DEFAULT_TEMPERATURE, MAX_TEMPERATURE, MIN_PART_S
+from .constants import DEFAULT_TEMPERATURE, FRAME_RATES, MAX_TEMPERATURE, MIN_PART_S, ROOT_MODES
 from .errors import DanceNetError
-from .motion import FRAME_RATES, Motion
-from .rootmotion import ROOT_MODES
+
+if TYPE_CHECKING:
+    from .motion import Motion
 
 MAX_SEED = 2**32 - 1
 MAX_TAKES = 100
@@ -82,7 +83,7 @@ class DanceRequest:
         "different dances generated at once (one file set, or one action, each)", int, "--takes", "Takes",
         minimum=1, maximum=MAX_TAKES, panel_max=8))
     footfix: bool = _option(True, Option(
-        "remove foot sliding and floor contact errors (--no-footfix skips it)", bool, "--no-footfix",
+        "remove foot sliding and floor contact errors", bool, "--no-footfix",
         "Foot Clean-up"))
     start_s: float = _option(0.0, Option(
         "dance from this many seconds into the song (default: its beginning)", float, "--start",
@@ -171,7 +172,8 @@ def add_options(parser: argparse.ArgumentParser, help_overrides: dict[str, str] 
             continue
         text = (help_overrides or {}).get(name, o.help)
         if o.kind is bool:
-            parser.add_argument(o.flag, dest=name, action="store_false" if default else "store_true", help=text)
+            parser.add_argument(o.flag, dest=name, action="store_false" if default else "store_true",
+                                help=f"do not {text}" if default else text)
             continue
         choices = [o.kind(c[0]) for c in o.choices] or None
         parser.add_argument(o.flag, dest=name, type=o.kind, default=default, choices=choices, metavar=o.metavar,

@@ -15,12 +15,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .bvh import _write, read_bvh
+from .constants import ROOT_MODES
 from .errors import DanceNetError
 from .motion import Motion
 from .representation import _yaw_and_tilt
 from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
 
-ROOT_MODES: tuple[str, ...] = ("travel", "in-place", "root-bone")
 ROOT_BONE = "root"
 # Units a dance's BVH may come in (ours and Blender's exporter write metres; other tools centimetres or inches),
 # told apart by the skeleton's size against our dancer's; metres per unit.

@@ -12,7 +12,8 @@ import soundfile as sf
 
 from dancenet_core.bvh import read_bvh
 from dancenet_core.cli import main as cli_main
-from dancenet_core.motion import FRAME_RATES, Motion
+from dancenet_core.constants import FRAME_RATES
+from dancenet_core.motion import Motion
 
 
 @pytest.fixture(scope="module")

@@ -15,9 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from dancenet_core.generate import GenerationCancelled, GenerationResult
+from dancenet_core.errors import GenerationCancelled
+from dancenet_core.generate import GenerationResult
 from dancenet_core.motion import Motion
 from dancenet_core.progress import StageProgress
+from dancenet_core.request import DanceRequest
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
 FAKE_STYLES = ["ballet", "hiphop", "jazz"]
@@ -65,23 +67,11 @@ def synthetic_motion(seconds: float, seed: int, fps: float = FAKE_FPS) -> Motion
 def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..., GenerationResult]:
     """A generate_dance stand-in; `step_delay` seconds per progress step (for the cancel test)."""
 
-    def fake_generate_dance(
-        song: str | Path,
-        style: str = "auto",
-        seed: int = 0,
-        temperature: float = 0.3,
-        takes: int = 1,
-        footfix: bool = True,
-        progress: StageProgress | None = None,
-        should_cancel: Callable[[], bool] | None = None,
-        weights: str | None = None,
-        start_s: float = 0.0,
-        end_s: float | None = None,
-        continue_from: Motion | None = None,
-        at_s: float = 0.0,
-    ) -> GenerationResult:
-        CALLS.append({"song": Path(song), "style": style, "seed": seed, "takes": takes, "start_s": start_s,
-                      "end_s": end_s, "continue_from": continue_from, "at_s": at_s})
+    def fake_generate_dance(request: DanceRequest, progress: StageProgress | None = None,
+                            should_cancel: Callable[[], bool] | None = None) -> GenerationResult:
+        CALLS.append(vars(request))
+        song, style, seed, start_s, end_s = request.song, request.style, request.seed, request.start_s, request.end_s
+        continue_from, at_s = request.continue_from, request.at_s
         end = song_seconds(Path(song)) if end_s is None else min(end_s, song_seconds(Path(song)))
         seconds = end - start_s
         for k in range(steps):
@@ -94,7 +84,7 @@ def make_fake_generator(step_delay: float = 0.0, steps: int = 10) -> Callable[..
         chosen = max(probabilities, key=probabilities.get) if style == "auto" else style
         beats = np.arange(0.0, end, 60.0 / FAKE_TEMPO)
         beats = beats[beats >= start_s] - start_s
-        motions = [synthetic_motion(seconds, 1000 * seed + k) for k in range(takes)]
+        motions = [synthetic_motion(seconds, 1000 * seed + k) for k in range(request.takes)]
         if continue_from is not None:  # the kept frames, then the new dance (no care for the join: a stand-in)
             j = round(at_s * FAKE_FPS)
             kept = continue_from.resampled(FAKE_FPS)

@@ -33,8 +33,7 @@ from scene_helpers import (
     world_heads,
 )
 
-from dancenet_core.errors import DanceNetError
-from dancenet_core.generate import GenerationCancelled
+from dancenet_core.errors import DanceNetError, GenerationCancelled
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_NAMES
 
 # --- rig -------------------------------------------------------------------------------------------
@@ -245,7 +244,7 @@ def test_takes_become_separate_actions(scene, addon, song):
 def test_an_empty_sequencer_is_read_through_strips(scene, addon):
     """Blender 5.0 has only `strips`, and an empty collection is falsy: it must not fall back to `sequences`."""
     scene.sequence_editor_create()
-    assert addon.pipeline.strips_of(scene).path_from_id() == "sequence_editor.strips"
+    assert addon.song.strips_of(scene).path_from_id() == "sequence_editor.strips"
 
 
 def test_active_sound_strip_is_the_music_source(scene, addon, song):
@@ -354,7 +353,7 @@ def test_file_saved_mid_generation_does_not_load_busy(scene, addon, tmp_path):
 
 
 def test_generator_errors_are_reported(scene, addon, song, monkeypatch):
-    def failing(**_kwargs):
+    def failing(_request, **_kwargs):
         raise DanceNetError("could not decode the song")
 
     monkeypatch.setattr(addon.pipeline, "load_generator", lambda: failing)

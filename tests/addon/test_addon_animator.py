@@ -268,7 +268,7 @@ def test_continue_needs_a_take_and_a_frame_inside_it(scene, addon, song):
 
 def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_path, capsys):
     """The real dance on a new rig with a root bone, continued from frame 97: kept before, flowing after."""
-    from blender_addon import pipeline
+    from blender_addon import takes
 
     sc = real_scene
     props = sc.dancenet
@@ -288,7 +288,7 @@ def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_pa
     sc.frame_set(97)
     assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
     assert rig.animation_data.action != first_take
-    assert pipeline.take_info(rig.animation_data.action)["seed"] == 3
+    assert takes.take_info(rig.animation_data.action)["seed"] == 3
     after = evaluated_heads(sc, rig, range(1, 193))
     assert np.abs(after[:96] - before[:96]).max() < 1e-3  # frames 1-96 kept
     assert np.abs(after[110:] - before[110:]).max() > 0.05  # then a new dance
@@ -300,7 +300,7 @@ def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_pa
     assert join["step"] <= join["step_p95"], join
     assert join["dv"] <= join["dv_p95"], join
     # Both takes are NLA tracks; choosing the first plays it again.
-    assert [t.mute for t, _a in pipeline.takes_of(rig)] == [True, False]
+    assert [t.mute for t, _a in takes.takes_of(rig)] == [True, False]
     assert bpy.ops.dancenet.choose_take(action=first_take.name) == {"FINISHED"}
     assert np.abs(evaluated_heads(sc, rig, [150]) - before[149]).max() < 1e-4
     with capsys.disabled():
@@ -318,7 +318,7 @@ def test_takes_are_nla_tracks_one_playing_switchable(scene, addon, song):
     props.music_source, props.music_file, props.takes, props.seed = "FILE", str(song), 3, 2
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     rig = bpy.data.objects["DanceNet Dancer"]
-    takes = addon.pipeline.takes_of(rig)
+    takes = addon.takes.takes_of(rig)
     assert [a.name for _t, a in takes] == [f"Test Song · hiphop · seed 2 · take {k}" for k in (1, 2, 3)]
     assert [t.mute for t, _a in takes] == [False, True, True]
     assert rig.animation_data.action == takes[0][1]
@@ -372,7 +372,7 @@ def test_users_actions_and_nla_tracks_are_never_changed(scene, addon, song):
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     scene.frame_set(20)
     assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
-    ours = addon.pipeline.takes_of(rig)
+    ours = addon.takes.takes_of(rig)
     assert len(ours) == 3
     assert track not in [t for t, _a in ours]
     assert bpy.ops.dancenet.choose_take(action=ours[1][1].name) == {"FINISHED"}
@@ -650,7 +650,7 @@ def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon,
     for joint in addon.rigdef.REQUIRED_JOINTS:
         assert shown[f"{joint.replace('_', ' ')}: {expected[joint]} (by shape)"].icon == "CHECKMARK"
     assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
-    mapping, _ = addon.pipeline.resolve_map(rig, None)
+    mapping, _ = addon.rigchoice.resolve_map(rig, None)
     assert {j: mapping[j] for j in addon.shapemap.BODY_JOINTS} == {j: expected[j] for j in addon.shapemap.BODY_JOINTS}
     error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
     LANDING[f"shape only, {rig_kind}"] = error
@@ -693,10 +693,10 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
 
     # Saved, the map is found by Auto for the same rig in another file (a fresh scene).
     assert bpy.ops.dancenet.save_bone_map(name="Genesis custom") == {"FINISHED"}
-    saved = addon.pipeline.saved_maps_dir() / "Genesis_custom.json"
+    saved = addon.rigchoice.saved_maps_dir() / "Genesis_custom.json"
     assert saved.is_file()
     rig2 = build_armature("Genesis 2", rows, mixamo_import=False)
-    chosen = addon.bonemap.detect([b.name for b in rig2.data.bones], rig2.name, addon.pipeline.saved_maps_dir())
+    chosen = addon.bonemap.detect([b.name for b in rig2.data.bones], rig2.name, addon.rigchoice.saved_maps_dir())
     assert chosen.name == "Genesis custom"
     assert chosen.bones["left_elbow"] == "lForearmTwist"
     saved.unlink()
@@ -705,8 +705,8 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
 def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsys):
     """The real dance on a DAZ-named A-pose rig with twist bones and its own proportions: Auto maps it and
     the feet, hands and head land within 5% of its height of where the dance puts them."""
-    from blender_addon import bonemap, pipeline
-    from dancenet_core.generate import load_bundle
+    from blender_addon import bonemap, takes
+    from dancenet_core.engines.dancenet import load_bundle
 
     daz = bonemap.load_shipped("DAZ")
     twists = {"left_shoulder": "lShldrTwist", "right_elbow": "rForearmTwist", "left_hip": "lThighTwist"}
@@ -720,7 +720,7 @@ def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsy
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     mapping, _ = bonemap.resolve(bonemap.detect([b.name for b in rig.data.bones], rig.name), [b.name for b in
                                                                                             rig.data.bones], rig.name)
-    dance = pipeline.take_motion(rig.animation_data.action).resampled(24)
+    dance = takes.take_motion(rig.animation_data.action).resampled(24)
     error = landing_error(rig, mapping, dance, real_scene.frame_start)
     LANDING["DAZ, shipped model"] = error
     assert error < 0.05, error

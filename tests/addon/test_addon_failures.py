@@ -59,7 +59,7 @@ def test_a_rig_flattened_while_the_dance_is_made_changes_nothing(scene, addon, s
     props = scene.dancenet
     props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
     plan = addon.pipeline.prepare(scene)
-    result = make_fake_generator()(**plan.request.kwargs())
+    result = make_fake_generator()(plan.request)
     rig.scale = (1.0, 0.0, 1.0)
     bpy.context.view_layer.update()  # as Blender does after an edit in its interface
     before, rig_before = snapshot(scene), rig_state(rig)
@@ -93,7 +93,8 @@ _STEPS = ["song strip", "new rig", "second take", "markers", "panel settings"]
 @pytest.mark.parametrize("target", ["NEW", "EXISTING"])
 @pytest.mark.parametrize("step", _STEPS)
 def test_a_failure_at_any_step_of_applying_leaves_the_file_as_it_was(scene, addon, song, monkeypatch, target, step):
-    from blender_addon import keyframes, pipeline, properties
+    from blender_addon import keyframes, markers, pipeline, properties
+    from blender_addon import song as song_strips
 
     if step == "new rig" and target == "EXISTING":
         pytest.skip("an existing rig is used, none is built")
@@ -106,8 +107,8 @@ def test_a_failure_at_any_step_of_applying_leaves_the_file_as_it_was(scene, addo
     scene.timeline_markers.new("chorus", frame=30)
     scene.frame_start, scene.frame_end, scene.frame_current = 10, 90, 42
     patches = {
-        "song strip": (pipeline, "_song_strip"), "new rig": (pipeline.rig, "create_rig"),
-        "second take": (keyframes, "write_action"), "markers": (pipeline, "_set_markers"),
+        "song strip": (song_strips, "song_strip"), "new rig": (pipeline.rig, "create_rig"),
+        "second take": (keyframes, "write_action"), "markers": (markers, "set_markers"),
         "panel settings": (properties.DanceNetSettings, "remember_analysis"),
     }  # fmt: skip
     owner, name = patches[step]
@@ -145,11 +146,11 @@ def test_what_a_crafted_blend_stores_is_left_unread_never_raised(scene, addon, s
     assert generate(scene, song) == {"FINISHED"}
     rig = bpy.context.view_layer.objects.active
     action = rig.animation_data.action
-    assert addon.pipeline.take_info(action) is not None
-    action[addon.pipeline.TAKE_PROP] = text
-    scene[addon.pipeline.MARKERS_PROP] = text
+    assert addon.takes.take_info(action) is not None
+    action[addon.takes.TAKE_PROP] = text
+    scene[addon.markers.MARKERS_PROP] = text
     scene.dancenet.analysis = text
-    assert addon.pipeline.take_info(action) is None
+    assert addon.takes.take_info(action) is None
     assert scene.dancenet.analysis_for(str(song)) is None
     assert not bpy.ops.dancenet.continue_dance.poll()
     shot = panel_screenshot()
@@ -161,7 +162,7 @@ def test_what_a_crafted_blend_stores_is_left_unread_never_raised(scene, addon, s
 def test_a_take_whose_dance_is_damaged_is_one_line(scene, addon, song):
     assert generate(scene, song) == {"FINISHED"}
     action = bpy.context.view_layer.objects.active.animation_data.action
-    action[addon.pipeline.MOTION_PROP] = {"rotations": [0.0] * 7, "root": [0.0] * 3, "offsets": [0.0] * 165,
+    action[addon.takes.MOTION_PROP] = {"rotations": [0.0] * 7, "root": [0.0] * 3, "offsets": [0.0] * 165,
                                           "fps": 25.0}
     with pytest.raises(addon.pipeline.DanceNetError, match="holds no readable dance .*generate it again"):
-        addon.pipeline.take_motion(action)
+        addon.takes.take_motion(action)

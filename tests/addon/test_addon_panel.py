@@ -51,7 +51,7 @@ def test_takes_list_shows_the_takes_newest_first_and_a_click_plays_one(scene, ad
     assert generate(scene, song, takes=3) == {"FINISHED"}
     rig = bpy.data.objects["DanceNet Dancer"]
     rig.animation_data.nla_tracks.new().name = "my own track"  # a user's track: not a take, not listed
-    takes = [action.name for _track, action in addon.pipeline.takes_of(rig)]
+    takes = [action.name for _track, action in addon.takes.takes_of(rig)]
 
     def listed() -> list:
         folds = sub_panels(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))
@@ -65,12 +65,12 @@ def test_takes_list_shows_the_takes_newest_first_and_a_click_plays_one(scene, ad
     props = scene.dancenet
     props.take_index = next(i for i, t in enumerate(tracks) if t.strips and t.strips[0].action.name == takes[2])
     assert rig.animation_data.action.name == takes[2]
-    assert [t.mute for t, _ in addon.pipeline.takes_of(rig)] == [True, True, False]
+    assert [t.mute for t, _ in addon.takes.takes_of(rig)] == [True, True, False]
     assert [w.selected for w in listed()] == [True, False, False]
 
     props.take_index = tracks.index(rig.animation_data.nla_tracks["my own track"])  # never chosen as a take
     assert rig.animation_data.action.name == takes[2]
-    assert props.take_index == tracks.index(addon.pipeline.takes_of(rig)[2][0])
+    assert props.take_index == tracks.index(addon.takes.takes_of(rig)[2][0])
 
     assert bpy.ops.dancenet.choose_take(action=takes[1]) == {"FINISHED"}  # the operator still works, and shows
     assert [w.selected for w in listed()] == [False, True, False]
@@ -88,11 +88,11 @@ def test_missing_optional_joints_are_one_line_with_the_list_on_request(scene, ad
     assert not any("index1" in text for text in shown)  # the joints themselves: on demand only
     assert bpy.ops.dancenet.list_missing_joints() == {"FINISHED"}
 
-    _, skipped = addon.pipeline.resolve_map(rig, None)
-    summary = addon.pipeline.missing_summary(skipped)
+    _, skipped = addon.rigchoice.resolve_map(rig, None)
+    summary = addon.rigchoice.missing_summary(skipped)
     assert summary == SUMMARY
     assert generate(scene, song) == {"FINISHED"}
-    assert addon.pipeline.missing_summary(["jaw (jaw)", "left_foot (LeftToeBase)"]) == (
+    assert addon.rigchoice.missing_summary(["jaw (jaw)", "left_foot (LeftToeBase)"]) == (
         "2 optional joints not on this rig (face: 1, toes: 1)"
     )
 
