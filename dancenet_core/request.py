@@ -118,8 +118,11 @@ class DanceRequest:
             raise DanceNetError(f"takes must be from 1 to {MAX_TAKES}, got {self.takes}")
         if self.fps is not None and not (np.isfinite(self.fps) and 1 <= self.fps <= 1000):
             raise DanceNetError(f"the frame rate must be from 1 to 1000 fps, got {self.fps}")
-        if self.root_motion not in ROOT_MODES:
-            raise DanceNetError(f"unknown root motion '{self.root_motion}'; choose one of: {', '.join(ROOT_MODES)}")
+        for name, _default, o in options():
+            allowed = [c[0] for c in o.choices]
+            if o.kind is str and allowed and getattr(self, name) not in allowed:
+                raise DanceNetError(f"unknown {name.replace('_', ' ')} '{getattr(self, name)}'; choose one of: "
+                                    f"{', '.join(allowed)}")
         if self.continue_from is not None and not 0 < self.at_s <= self.continue_from.duration:
             raise DanceNetError(f"the new dancing must start within the kept dance (0 to "
                                 f"{self.continue_from.duration:.2f} s), got {self.at_s}")
