@@ -25,6 +25,8 @@ if TYPE_CHECKING:
 MAX_SEED = 2**32 - 1
 MAX_TAKES = 100
 DEFAULT_ENGINE = "dancenet"
+# The energy presets' factors on the temperature (1 keeps the dance as the user's temperature makes it).
+ENERGY_SCALES = {"calm": 0.6, "as-danced": 1.0, "lively": 1.3}
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,12 @@ class DanceRequest:
     takes: int = _option(1, Option(
         "different dances generated at once (one file set, or one action, each)", int, "--takes", "Takes",
         minimum=1, maximum=MAX_TAKES, panel_max=8))
+    energy: str = _option("as-danced", Option(
+        "how much the dancer puts in: calm or lively scale the temperature (x0.6, x1.3, at most "
+        f"{MAX_TEMPERATURE:g})", str, "--energy", "Energy", choices=(
+            ("calm", "Calm", "Smaller, steadier moves (temperature x0.6)"),
+            ("as-danced", "As Danced", "The temperature as set"),
+            ("lively", "Lively", "Bolder, bigger moves (temperature x1.3)"))))
     footfix: bool = _option(True, Option(
         "remove foot sliding and floor contact errors", bool, "--no-footfix",
         "Foot Clean-up"))
@@ -127,6 +135,11 @@ class DanceRequest:
             raise DanceNetError(f"the new dancing must start within the kept dance (0 to "
                                 f"{self.continue_from.duration:.2f} s), got {self.at_s}")
         check_song_path(self.song)
+
+    @property
+    def sampling_temperature(self) -> float:
+        """The temperature the engine samples at: the user's, scaled by the energy preset."""
+        return min(self.temperature * ENERGY_SCALES[self.energy], MAX_TEMPERATURE)
 
     def part(self, duration_s: float) -> tuple[float, float]:
         """(start, end) seconds of the song to dance: the end clipped to the song's; a start too close to the

@@ -137,7 +137,7 @@ class DanceNetEngine:
         t = time.perf_counter()
         progress("dancing", 0.0)
         try:
-            takes_feats = sample_dance(bundle, cond, first, Sampling(request.temperature, rng),
+            takes_feats = sample_dance(bundle, cond, first, Sampling(request.sampling_temperature, rng),
                                        progress=lambda f: progress("dancing", f), should_stop=should_cancel,
                                        prefix=prefix)
         except InterruptedError as e:
