@@ -25,8 +25,6 @@ POINT_NAMES: tuple[str, ...] = (
 )  # fmt: skip
 P = {n: i for i, n in enumerate(POINT_NAMES)}
 
-STYLE_NAMES = {"C": "cha-cha", "R": "rumba", "T": "tango", "W": "waltz"}
-
 
 @dataclass(frozen=True)
 class Recording:
