@@ -24,7 +24,7 @@ def dance_under_auto(scene, song, rig) -> dict[str, str]:
     props = scene.dancenet
     props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
-    from blender_addon.pipeline import take_info
+    from blender_addon.takes import take_info
 
     return take_info(rig.animation_data.action)["bone_map"]
 
