@@ -197,7 +197,16 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     p, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
     qc = q @ c
     g = qc @ w @ qc.T  # world turns, in Blender axes, on the rig's own frame
-    root_target = theirs[0] + scale * (motion.root_positions @ c.T - ours[0]) @ q.T
+    # The dance is scaled onto the rig about the hips, where the legs start, not about the pelvis bone's head:
+    # rigs put that head anywhere from above the hips (ours) to below them (Rigify's), and scaling about it
+    # would send the feet into the floor or leave them hanging above it.
+    hips = [skeleton.index(f"{side}_hip") for side in ("left", "right")]
+    hips_theirs = (theirs[hips[0]] + theirs[hips[1]]) / 2
+    hips_ours = ours[hips].mean(axis=0)
+
+    def placed(points: np.ndarray) -> np.ndarray:
+        """Where points of the dance [..., 3] (our FK, Y up) go on the rig."""
+        return hips_theirs + scale * (points @ c.T - hips_ours) @ q.T
 
     def aim(j: int, bone: str) -> np.ndarray:
         """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest. A bone
@@ -209,6 +218,10 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
             turn = _min_rotations(np.einsum("tij,j->ti", g[:, j], q @ (ours[k] - ours[j])),
                                   (p[:, k] - p[:, j]) @ qc.T) @ turn
         return turn
+
+    # The pelvis bone's head goes where it must for the hips, which it carries, to be where the dance puts them.
+    pelvis_turn = aim(0, mapped[0]) @ _unit(rest[mapped[0]]).T
+    root_target = placed(p[:, hips].mean(axis=1)) - pelvis_turn @ (hips_theirs - theirs[0])
 
     def head_offset(parent: str, child: str) -> np.ndarray:
         """Where `child`'s head sits in `parent`'s posed world frame (bones in between at rest)."""
@@ -265,7 +278,7 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
             p_upper = identity_pose[:, :3, 3] * np.ones((motion.num_frames, 1))
             p_mid = p_upper + target @ head_offset(name, lower)
             p_end = p_mid + aim(jm, lower) @ head_offset(lower, end)
-            want = root_target + scale * ((p[:, je] - p[:, 0]) @ c.T) @ q.T
+            want = placed(p[:, je])
             turn_upper, limb_turn[lower] = _reach(p_upper, p_mid, p_end, want)
             target = turn_upper @ target
         basis = np.swapaxes(identity_pose[:, :3, :3] / scale_xyz, -1, -2) @ target
@@ -281,7 +294,7 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     if floor is not None:
         root, points, yaw = floor
         a = scale * qc
-        tracks.floor_bone = (root, *_floor_tracks(rest[root], a, theirs[0] - scale * q @ ours[0], qc, points, yaw))
+        tracks.floor_bone = (root, *_floor_tracks(rest[root], a, hips_theirs - scale * q @ hips_ours, qc, points, yaw))
     return tracks
 
 

@@ -107,10 +107,13 @@ def character_frame(
     """Orthonormal frame [3, 3] with columns (left, up, forward) from four rest joint positions.
 
     Retargeting compares two rigs through these frames, so a rig that faces another way or is stored
-    Y-up (Mixamo imports) still dances facing its own front.
+    Y-up (Mixamo imports) still dances facing its own front. Up is the world axis nearest the spine: a rig
+    stands along one, and a spine that leans at rest (Rigify's by 6 degrees more than ours) is posture; taken
+    as up, it would tilt the whole dance, its floor and the feet on it included.
     """
-    up = neck - pelvis
-    up = up / np.linalg.norm(up)
+    spine = neck - pelvis
+    axis = int(np.argmax(np.abs(spine)))
+    up = np.sign(spine[axis]) * np.eye(3)[axis]
     left = left_hip - right_hip
     left = left - (left @ up) * up
     left = left / np.linalg.norm(left)
