@@ -44,7 +44,7 @@ def step_seconds(mixtures: int, batch: int, threads: int, steps: int) -> float:
                         mixtures=mixtures)
     opt = torch.optim.RMSprop(model.parameters(), lr=1e-4)
     x = torch.randn(batch, WINDOW, layout.size)
-    music = torch.randn(batch, WINDOW, 15)
+    music = torch.randn(batch, WINDOW, model.cfg.music_dim)
     style = torch.zeros(batch, dtype=torch.long)
     times = []
     for _ in range(steps + 1):

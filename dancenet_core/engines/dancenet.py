@@ -15,7 +15,7 @@ from ..constants import MIN_PART_S
 from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
 from ..motion import Motion
-from ..music.features import MusicAnalysis, music_at_frames
+from ..music.features import FEATURE_SPEC, FeatureSpec, MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
 from ..representation import FeatureLayout, decode, encode
 from ..request import DanceRequest
@@ -37,13 +37,17 @@ OUTPUT_SMOOTHING_FRAMES = 1.5
 @lru_cache(maxsize=2)
 def load_bundle(path: str | None = None) -> RuntimeBundle:
     """The DanceNet weights as plain arrays: the shipped `.npz` by default; a training checkpoint (`.pt`, e.g.
-    from `runs/`) is converted in memory, which needs torch."""
+    from `runs/`) is converted in memory, which needs torch. A one-line error for weights trained on other music
+    features than these."""
     if is_checkpoint(path):
         from ..nets.bundle import DanceNetBundle  # torch: only where checkpoints are trained
         from ..nets.export import bundle_to_runtime
 
-        return bundle_to_runtime(DanceNetBundle.load(path))
-    return RuntimeBundle.load(path or DEFAULT_RUNTIME)
+        bundle = bundle_to_runtime(DanceNetBundle.load(path))
+    else:
+        bundle = RuntimeBundle.load(path or DEFAULT_RUNTIME)
+    FEATURE_SPEC.check_trained(FeatureSpec.from_dict(bundle.model.cfg.music_spec), "DanceNet weights")
+    return bundle
 
 
 @lru_cache(maxsize=1)

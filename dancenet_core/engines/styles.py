@@ -6,7 +6,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..errors import DanceNetError
-from ..music.features import MusicAnalysis
+from ..music.features import FEATURE_SPEC, MusicAnalysis
 from ..runtime.weights import STYLE_RUNTIME, RuntimeStyleModel
 
 
@@ -18,13 +18,16 @@ def is_checkpoint(path: str | Path | None) -> bool:
 @lru_cache(maxsize=2)
 def load_style_model(path: str | None = None) -> RuntimeStyleModel:
     """The music style classifier: the shipped `.npz` by default; a training checkpoint (`.pt`) is converted in
-    memory, which needs torch."""
+    memory, which needs torch. A one-line error for weights trained on other music features than these."""
     if is_checkpoint(path):
         from ..nets.export import style_to_runtime  # torch: only where checkpoints are trained
         from ..nets.style_torch import StyleModel
 
-        return style_to_runtime(StyleModel.load(path))
-    return RuntimeStyleModel.load(path or STYLE_RUNTIME)
+        model = style_to_runtime(StyleModel.load(path))
+    else:
+        model = RuntimeStyleModel.load(path or STYLE_RUNTIME)
+    FEATURE_SPEC.check_trained(model.music_spec, "style classifier weights")
+    return model
 
 
 def check_style(requested: str, styles: list[str]) -> None:

@@ -43,13 +43,13 @@ from .madmom_nets import OnsetAndBeat
 
 FEATURE_VERSION = "music-features-1"  # change whenever any computation below changes
 FPS = 10
-N_FEATURES = 15
-CHROMA_COLS = slice(0, 12)
-BEAT_COL, DOWNBEAT_COL, ONSET_COL = 12, 13, 14
 FEATURE_NAMES = tuple(
     [f"chroma_{p}" for p in ("C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B")]
     + ["beat", "downbeat", "onset"]
 )
+N_FEATURES = len(FEATURE_NAMES)
+CHROMA_COLS = slice(0, 12)
+BEAT_COL, DOWNBEAT_COL, ONSET_COL = (FEATURE_NAMES.index(c) for c in ("beat", "downbeat", "onset"))
 MEL_BANDS = 80
 BEATS_PER_BAR = (3, 4)
 
@@ -63,12 +63,56 @@ DBN_BLOCK_S = 40  # madmom's Viterbi pass stored 4 bytes per frame and state (~1
 DBN_CONTEXT_S = 10
 
 
+@dataclass(frozen=True)
+class FeatureSpec:
+    """The music features a network hears, written into its weights when they are saved, so that generation can
+    tell weights trained on other features (another extractor, version or column order) from its own."""
+
+    version: str
+    fps: int
+    columns: tuple[str, ...]
+
+    @property
+    def dim(self) -> int:
+        return len(self.columns)
+
+    def to_dict(self) -> dict:
+        return {"version": self.version, "fps": self.fps, "dim": self.dim, "columns": list(self.columns)}
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> FeatureSpec:
+        """The spec weights record; weights saved before specs were recorded (None) were trained on FEATURE_SPEC."""
+        if d is None:
+            return FEATURE_SPEC
+        try:
+            return cls(str(d["version"]), int(d["fps"]), tuple(str(c) for c in d["columns"]))
+        except (KeyError, TypeError, ValueError) as e:
+            raise DanceNetError(f"the weights' music feature spec is unreadable ({first_line(e)}); "
+                                "re-export them with `dancenet weights export`") from e
+
+    def describe(self, columns: bool = False) -> str:
+        text = f"{self.version} ({self.dim} columns at {self.fps} fps"
+        return text + (f": {', '.join(self.columns)})" if columns else ")")
+
+    def check_trained(self, trained: FeatureSpec, what: str) -> None:
+        """A one-line DanceNetError unless the weights `what` were trained on the features this spec computes."""
+        if trained != self:
+            cols = (trained.version, trained.dim, trained.fps) == (self.version, self.dim, self.fps)
+            raise DanceNetError(f"these {what} were trained on music features {trained.describe(cols)}; this version "
+                                f"computes {self.describe(cols)}: use weights trained on this version's features, "
+                                "or the version of DanceNet they were trained with")
+
+
+FEATURE_SPEC = FeatureSpec(FEATURE_VERSION, FPS, FEATURE_NAMES)
+MEL_SPEC = FeatureSpec(FEATURE_VERSION, FPS, tuple(f"mel_{i}" for i in range(MEL_BANDS)))  # the ablation's input
+MUSIC_SPECS = {"onset_beat_chroma": FEATURE_SPEC, "mel": MEL_SPEC}  # by a network config's `music_features`
+
 
 @dataclass
 class MusicAnalysis:
     """Everything the dance model and the UI need to know about a song."""
 
-    features: np.ndarray  # [T, 15] float32 at `fps`, columns as FEATURE_NAMES
+    features: np.ndarray  # [T, N_FEATURES] float32 at `fps`, columns as FEATURE_NAMES
     beat_times: np.ndarray  # seconds
     downbeat_times: np.ndarray  # seconds
     tempo_bpm: float  # 60 / median beat interval; 0 when fewer than two beats were found

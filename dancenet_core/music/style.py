@@ -30,7 +30,7 @@ from scipy.special import softmax
 
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError
-from .features import BEAT_COL, DOWNBEAT_COL, FEATURE_VERSION, FPS, N_FEATURES, MusicAnalysis
+from .features import BEAT_COL, DOWNBEAT_COL, FPS, N_FEATURES, FeatureSpec, MusicAnalysis
 
 DEFAULT_WEIGHTS = WEIGHTS_DIR / "style_classifier.pt"
 BASELINE_WEIGHTS = WEIGHTS_DIR / "style_baseline.pt"
@@ -171,15 +171,16 @@ class StyleClassifier(ABC):
         self.fps = int(self.meta.get("fps", FPS))
         self.window = int(round(float(self.meta.get("window_s", WINDOW_S)) * self.fps))
         self.hop = int(round(float(self.meta.get("hop_s", HOP_S)) * self.fps))
+        self.music_spec = FeatureSpec.from_dict(self.meta.get("music_spec"))  # the features it was trained on
 
     @abstractmethod
     def logits(self, x: np.ndarray) -> np.ndarray:
         """[B, T, inputs] classifier input -> [B, styles] logits."""
 
     def full_meta(self) -> dict:
-        """The metadata a saved classifier carries: windows and the feature version it was trained on."""
+        """The metadata a saved classifier carries: windows and the music features it was trained on."""
         return {**self.meta, "fps": self.fps, "window_s": self.window / self.fps, "hop_s": self.hop / self.fps,
-                "feature_version": FEATURE_VERSION}
+                "feature_version": self.music_spec.version, "music_spec": self.music_spec.to_dict()}
 
     def window_probabilities(self, features: np.ndarray, starts: np.ndarray, batch: int = 64) -> np.ndarray:
         """[W, S] softmax of the windows of `features` starting at `starts`."""

@@ -22,6 +22,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from ..music.features import FEATURE_SPEC, N_FEATURES
 from .dancenet import dancenet_loss, output_size, split_outputs
 
 KINDS = ("lstm_gmm", "temporal_conv", "lstm_autoencoder")
@@ -34,8 +35,9 @@ class BaselineConfig:
     continuous_dim: int
     styles: list[str] = field(default_factory=list)
     fps: float = 25.0
-    music_dim: int = 15
+    music_dim: int = N_FEATURES  # = music_spec's dim
     music_features: str = "onset_beat_chroma"
+    music_spec: dict = field(default_factory=FEATURE_SPEC.to_dict)  # as DanceNetConfig's
     style_dim: int = 5
     hidden: int = 256
     layers: int = 2

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from torch import nn
 
-from ..music.features import MEL_BANDS, N_FEATURES
+from ..music.features import MUSIC_SPECS
 from ..runtime.sampler import CachedSampler, Sampling, music_conditioning
 from .baselines import KINDS, BaselineConfig, build_baseline
 from .dancenet import DanceNet, DanceNetConfig
@@ -35,13 +35,14 @@ def build_model(variant: str, motion_dim: int, continuous_dim: int, styles: list
     default the config's)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
-    music_dim = MEL_BANDS if music_features(variant) == "mel" else N_FEATURES
+    spec = MUSIC_SPECS[music_features(variant)]
     if variant in KINDS:
         return build_baseline(BaselineConfig(kind=variant, motion_dim=motion_dim, continuous_dim=continuous_dim,
-                                             styles=styles, music_dim=music_dim, music_window=window,
-                                             loss="gmm" if variant == "lstm_gmm" else "mse"))
+                                             styles=styles, music_dim=spec.dim, music_spec=spec.to_dict(),
+                                             music_window=window, loss="gmm" if variant == "lstm_gmm" else "mse"))
     cfg = DanceNetConfig(motion_dim=motion_dim, continuous_dim=continuous_dim, styles=styles, fps=25.0,
-                         music_window=window, music_dim=music_dim, music_features=music_features(variant),
+                         music_window=window, music_dim=spec.dim, music_features=music_features(variant),
+                         music_spec=spec.to_dict(),
                          mixtures=mixtures if variant != "dancenet_mse" else 1, residual_output=residual_output,
                          input_skip=input_skip, loss="mse" if variant == "dancenet_mse" else "gmm",
                          music_encoder="frame" if variant == "dancenet_no_context" else "context")

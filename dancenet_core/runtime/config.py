@@ -7,6 +7,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..music.features import FEATURE_SPEC, N_FEATURES
+
 
 @dataclass
 class DanceNetConfig:
@@ -16,7 +18,7 @@ class DanceNetConfig:
     continuous_dim: int  # channels modelled by the mixture (the rest are foot contacts)
     styles: list[str] = field(default_factory=list)
     fps: float = 25.0
-    music_dim: int = 15
+    music_dim: int = N_FEATURES  # = music_spec's dim
     music_code: int = 30
     music_hidden: int = 64
     music_window: int = 200  # frames (8 s at 25 fps)
@@ -46,7 +48,10 @@ class DanceNetConfig:
     # "context" (conv + Bi-LSTM) or "frame" (a per-frame linear map, no musical context) music encoder.
     loss: str = "gmm"
     music_encoder: str = "context"
-    music_features: str = "onset_beat_chroma"  # or "mel" (music_dim 80)
+    music_features: str = "onset_beat_chroma"  # or "mel" (music_dim MEL_BANDS)
+    # The music features trained on (music.features.FeatureSpec.to_dict()), checked at generation. A config saved
+    # before it was recorded reads as this version's spec, the one such weights were trained on.
+    music_spec: dict = field(default_factory=FEATURE_SPEC.to_dict)
 
     @property
     def dilations(self) -> list[int]:

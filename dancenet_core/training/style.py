@@ -96,7 +96,7 @@ def load_songs(rows: Sequence[Recording], seqs: Sequence[str], log: Callable[[st
     return songs
 
 def transpose_chroma(x: np.ndarray, semitones: int) -> np.ndarray:
-    """A copy of [T, >= 15] features in another key: the 12 chroma bins rolled, rhythm columns untouched. A key is
+    """A copy of [T, >= N_FEATURES] features in another key: the chroma bins rolled, rhythm columns untouched. A key is
     no style cue, and with 4-5 songs of a style the net would otherwise learn their keys."""
     out = x.copy()
     out[:, CHROMA_COLS] = np.roll(x[:, CHROMA_COLS], semitones, axis=1)
