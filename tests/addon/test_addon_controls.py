@@ -36,7 +36,10 @@ def rigify_rig(scene):
     try:
         yield rig
     finally:
-        getattr(bpy.types, f"VIEW3D_PT_rig_ui_{rig_id}").draw.__globals__["unregister"]()
+        ui = getattr(bpy.types, f"VIEW3D_PT_rig_ui_{rig_id}").draw.__globals__
+        ui["unregister"]()
+        if "register_usetime_properties" in ui:  # Rigify 5's UI script shares two properties with Rigify:
+            ui["register_usetime_properties"]()  # back for Rigify's own unregister, which stops without them
         addon_utils.disable("rigify", default_set=True)
         for clear in typing._cleanups:  # CPython's own list of typing's cache clearers
             clear()
