@@ -107,11 +107,15 @@ class DanceRequest:
     continue_from: Motion | None = None  # a dance to the same part of the song, kept up to `at_s` seconds
     at_s: float = 0.0
     engine: str = _option(DEFAULT_ENGINE, Option(
-        "what makes the dance (engines.ENGINES)", str, "--engine"))
+        "what makes the dance: dancenet (the network dances anew) or library (figures cut from motion capture on "
+        "the song's beats)", str, "--engine", "Engine", choices=(
+            ("dancenet", "DanceNet", "The network dances anew to the music"),
+            ("library", "Motion Library", "Figures cut from a library of motion capture on the song's beats"))))
     weights: str | None = _option(None, Option(
         "the engine's weights file (default: the shipped ones)", str, "--weights"))
     library: Path | None = _option(None, Option(
-        "a folder of motion clips, for an engine that dances from them", Path, "--library"))
+        "a folder of BVH clips built with `dancenet library build` (default: the shipped CMU dance clips), for "
+        "--engine library", Path, "--library", "Library", metavar="FOLDER"))
 
     def check(self) -> None:
         """Reject what no engine can dance, whatever the song: a one-line DanceNetError that says what to do."""

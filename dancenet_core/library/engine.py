@@ -15,7 +15,7 @@ from ..music.features import MusicAnalysis
 from ..progress import StageProgress
 from ..request import DanceRequest
 from .choreography import choreograph
-from .store import MotionLibrary, library_path, load_built
+from .store import MotionLibrary, library_path, load_built, load_default
 
 
 @lru_cache(maxsize=2)
@@ -24,15 +24,20 @@ def _load(path: Path, key: Path) -> MotionLibrary:
     return load_built(path)
 
 
+@lru_cache(maxsize=1)
+def _load_default() -> MotionLibrary:
+    return load_default()
+
+
 class LibraryEngine:
-    """Reads `request.library`, a folder of clips built with `dancenet library build`."""
+    """Reads `request.library`, a folder of clips built with `dancenet library build`, or without one the shipped
+    library of CMU's dance clips (`store.DEFAULT_LIBRARY`)."""
 
     name = "library"
 
     def library(self, request: DanceRequest) -> MotionLibrary:
-        if request.library is None:
-            raise DanceNetError("the library engine needs --library FOLDER (a folder of BVH clips, built with "
-                                "`dancenet library build FOLDER`)")
+        if request.library is None:  # the shipped CMU library
+            return _load_default()
         folder = Path(request.library)
         return _load(folder, library_path(folder) if folder.is_dir() else folder)
 
