@@ -146,6 +146,8 @@ class _Dance(_SubPanel):
         col = self.layout.column()
         col.prop(props, "style")
         for name, _default, _option in panel_options():  # the request's settings, in its order
+            if name == "library" and props.engine != "library":  # a library folder means nothing to DanceNet
+                continue
             col.prop(props, name)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)

@@ -10,6 +10,7 @@ have their module (`song`, `rigchoice`, `takes`, `markers`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import bpy
@@ -86,7 +87,11 @@ def panel_settings(source: Any) -> dict[str, Any]:
     """The request's panel settings (`request.panel_options`) read from the panel's properties, or from a take's
     record (a dict): what a new setting needs to reach a dance, the record and a continued take."""
     read = source.get if isinstance(source, dict) else lambda name, default: getattr(source, name, default)
-    return {name: read(name, default) for name, default, _o in panel_options()}
+    values = {name: read(name, default) for name, default, _o in panel_options()}
+    for name, _default, o in panel_options():  # a folder setting: "" is none, "//" is beside the .blend
+        if o.kind is Path:
+            values[name] = Path(bpy.path.abspath(str(values[name]))) if values[name] else None
+    return values
 
 
 def prepare(scene: bpy.types.Scene) -> Plan:
@@ -246,7 +251,7 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
         name = takes.action_name(req.song, result.style, req.seed, k, len(result.motions))
         if place.continues is not None:
             name = f"{name} · from frame {frame_start + round(req.at_s * fps)}"
-        action = keyframes.apply_motion(target, keyed, bone_map, name, frame_start, fps, req.root_motion)
+        action = keyframes.apply_motion(target, keyed, bone_map, name, frame_start, None, req.root_motion)
         action[takes.ACTION_PROP] = True
         takes.store_take(action, motion, panel_settings(req) | {
             "song": str(req.song), "style": result.style, "start_s": result.start_s,

@@ -83,6 +83,8 @@ def _setting(default: Any, option: Option) -> Any:
     common = {"name": option.label, "default": default, "description": option.help[:1].upper() + option.help[1:]}
     if option.choices:
         return EnumProperty(items=list(option.choices), **common)
+    if option.kind is Path:  # a folder; none is ""
+        return StringProperty(subtype="DIR_PATH", options=_BLEND_RELATIVE, **(common | {"default": default or ""}))
     if option.kind is bool:
         return BoolProperty(**common)
     top = option.panel_max if option.panel_max is not None else option.maximum

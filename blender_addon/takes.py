@@ -61,7 +61,7 @@ def store_take(action: bpy.types.Action, motion: Any, info: dict[str, Any]) -> N
     """Keep the take's dance (float32, ~0.7 MB a minute) and settings on its action, saved with the file."""
     import numpy as np
 
-    action[TAKE_PROP] = json.dumps(info)
+    action[TAKE_PROP] = json.dumps(info, default=str)  # a library folder (a Path) as its text
     action[MOTION_PROP] = {
         "rotations": motion.rotations.astype(np.float32).ravel(),
         "root": motion.root_positions.astype(np.float32).ravel(),
