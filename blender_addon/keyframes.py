@@ -560,10 +560,12 @@ def apply_motion(
     bone_map: dict[str, str],
     action_name: str,
     frame_start: int,
-    fps: float,
+    fps: float | None,
     root_motion: str = "travel",
 ) -> bpy.types.Action:
-    """Resample `motion` to `fps`, retarget it through `bone_map` and write it as a new action on `rig`.
+    """Retarget `motion` through `bone_map` and write it as a new action on `rig`. A Generate Dance passes its
+    takes as `dancenet_core.generate.shape_takes` made them, with `fps` None; given a rate, a motion as danced is
+    shaped here first by the same `shape_take` (resampled to `fps`, root motion applied).
 
     `root_motion` (see `dancenet_core.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
     top of the hips' chain carries the floor path and heading). A root bone of a rig made by DanceNet is
@@ -573,7 +575,8 @@ def apply_motion(
     from dancenet_core.generate import shape_take  # the command line's shaping too: one output path
     from dancenet_core.rootmotion import split_root
 
-    motion = shape_take(motion, fps, root_motion)
+    if fps is not None:
+        motion = shape_take(motion, fps, root_motion)
     controls = rigcontrols.find(rig.data.bones.keys(), bone_map)
     if controls is not None:
         return _key_controls(rig, motion, bone_map, controls, action_name, frame_start, root_motion == "root-bone")

@@ -197,6 +197,21 @@ def test_root_bone_and_in_place_keep_the_dance_where_it_belongs(scene, addon, so
         assert np.abs(np.array(rig.pose.bones["root"].matrix_basis) - np.eye(4)).max() < 1e-6
 
 
+def test_each_take_is_shaped_once(scene, addon, song, monkeypatch):
+    """The command line's output path shapes the takes (resampled, root motion applied); keying them does not
+    shape them again."""
+    from dancenet_core import generate
+
+    shaped = []
+    real = generate.shape_take
+    monkeypatch.setattr(generate, "shape_take", lambda *a: shaped.append(a[1:]) or real(*a))
+    scene.render.fps = 24  # the fake dances at 30 fps
+    props = scene.dancenet
+    props.music_source, props.music_file, props.root_motion, props.takes = "FILE", str(song), "in-place", 2
+    assert bpy.ops.dancenet.generate() == {"FINISHED"}
+    assert shaped == [(24.0, "in-place")] * 2
+
+
 def test_root_bone_on_a_rig_without_one_is_refused(scene, addon, song):
     scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
     assert bpy.ops.dancenet.generate() == {"FINISHED"}  # a rig without a root bone, now the target
