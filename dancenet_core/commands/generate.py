@@ -135,6 +135,7 @@ def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: 
         "takes": len(result.motions),
         "seed": args.seed,
         "temperature": args.temperature,
+        "energy": args.energy,
         "footfix": args.footfix,
         "root_motion": args.root_motion,
         "continued_from": str(args.continue_from) if args.continue_from else None,
