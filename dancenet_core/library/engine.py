@@ -17,6 +17,10 @@ from ..request import DanceRequest
 from .choreography import choreograph
 from .store import MotionLibrary, library_path, load_built, load_default
 
+# The style of a dance any clip may dance: what a dance from unnamed styles is called, and a style one may ask for
+# (a take's record asks for it again when it is continued).
+ANY_STYLE = "any"
+
 
 @lru_cache(maxsize=2)
 def _load(path: Path, key: Path) -> MotionLibrary:
@@ -47,7 +51,7 @@ class LibraryEngine:
     def check(self, request: DanceRequest) -> None:
         """The library is built and loads; the style is one of its clips'; a dance cannot be continued yet."""
         styles = self.styles(request)
-        if request.style != "auto":
+        if request.style not in ("auto", ANY_STYLE):
             check_style(request.style, styles)
         if request.continue_from is not None:
             raise DanceNetError("the library engine does not continue a dance yet; use --engine dancenet for "
@@ -62,10 +66,10 @@ class LibraryEngine:
         library = self.library(request)
         styles = self.styles(request)
         heard = set(styles) & set(load_style_model().styles)  # styles the music classifier can tell
-        if request.style != "auto" or heard:
-            chosen, probs = choose_style(request.style, analysis, sorted(heard) if request.style == "auto" else styles)
+        if request.style == ANY_STYLE or (request.style == "auto" and not heard):
+            chosen, probs = "", {}  # asked for, or a library of styles no classifier knows: every clip may dance
         else:
-            chosen, probs = "", {}  # a library of styles no classifier knows: every clip may dance
+            chosen, probs = choose_style(request.style, analysis, sorted(heard) if request.style == "auto" else styles)
         timings["style_s"] = time.perf_counter() - t
         if should_cancel():
             raise GenerationCancelled
@@ -75,4 +79,4 @@ class LibraryEngine:
         dances = choreograph(library, analysis, request.seed, start, end, request.takes, chosen or None)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
-        return Takes([d.motion for d in dances], chosen or "any", probs, timings=timings)
+        return Takes([d.motion for d in dances], chosen or ANY_STYLE, probs, timings=timings)

@@ -1,0 +1,150 @@
+"""Issue 25 item 5: the motion-library engine from the add-on: the panel's Engine and Library settings, a take
+danced from a library (one the test writes, and the shipped CMU one), Continue From Here and bad folders answered
+in one line, batch mode with --engine library."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from doubles import write_song
+from scene_helpers import bpy, generate, panel_screenshot, snapshot
+
+from dancenet_core.bvh import write_bvh
+from dancenet_core.engines import ENGINES
+from dancenet_core.generate import generate_dance
+from dancenet_core.motion import Motion
+from dancenet_core.request import options
+from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX
+
+SONG_S = 6.0
+
+
+def _clip(seconds: float, bpm: float, phase: float) -> Motion:
+    """Legs and arms swinging a cycle every two beats, the pelvis bobbing and walking forward."""
+    fps = 25.0
+    t = np.arange(round(seconds * fps)) / fps
+    s = np.sin(np.pi * bpm / 60 * t + phase)
+    rot = np.zeros((len(t), DEFAULT_SKELETON.num_joints, 3))
+    rot[:, JOINT_INDEX["left_hip"], 0], rot[:, JOINT_INDEX["right_hip"], 0] = 0.5 * s, -0.5 * s
+    rot[:, JOINT_INDEX["left_shoulder"], 2], rot[:, JOINT_INDEX["right_shoulder"], 2] = -1.2 + 0.4 * s, 1.2 + 0.4 * s
+    root = np.stack([0.05 * s, 0.9 + 0.02 * np.cos(2 * np.pi * bpm / 60 * t), 0.3 * t], axis=1)
+    return Motion(rot, root, fps)
+
+
+@pytest.fixture(scope="module")
+def library_folder(tmp_path_factory) -> Path:
+    """A built library of three 12-s clips in two styles (folders). `dancenet library build` needs torch (the
+    data package's floor fit): on a stack without it (Blender 5.2's), the tests of a user's library skip."""
+    pytest.importorskip("torch")
+    from dancenet_core.data.motion_library import build_library
+
+    folder = tmp_path_factory.mktemp("library")
+    for name, bpm, phase in (("swing/a", 110, 0.0), ("swing/b", 120, 1.0), ("salsa/c", 100, 2.0)):
+        (folder / name).parent.mkdir(exist_ok=True)
+        write_bvh(folder / f"{name}.bvh", _clip(12.0, bpm, phase))
+    build_library(folder, report=lambda _line: None)
+    return folder
+
+
+@pytest.fixture
+def real(addon, scene, monkeypatch, tmp_path):
+    """The core's generate_dance in place of the fake generator; a 6-s song at 120 BPM."""
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: generate_dance)
+    return write_song(tmp_path / "Library Song.wav", SONG_S)
+
+
+def _takes(addon, rig) -> list:
+    return [action for _track, action in addon.takes.takes_of(rig)]
+
+
+def test_the_panels_engines_are_the_cores(addon):
+    engine = next(o for name, _d, o in options() if name == "engine")
+    assert {value for value, _label, _help in engine.choices} == set(ENGINES)
+
+
+@pytest.mark.parametrize("engine", ["dancenet", "library"])
+def test_the_library_folder_is_drawn_only_for_the_library_engine(scene, addon, engine):
+    shot = panel_screenshot()
+    scene.dancenet.engine = engine
+    root = shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0])
+    shown = {w.text for w in shot.walk(root)}
+    assert "Engine" in shown
+    assert ("Library" in shown) == (engine == "library")
+
+
+def test_a_take_from_a_library_then_another(scene, addon, real, library_folder):
+    assert generate(scene, real, engine="library", library=str(library_folder), seed=4) == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    (first,) = _takes(addon, rig)
+    info = addon.takes.take_info(first)
+    assert (info["engine"], info["library"], info["seed"]) == ("library", str(library_folder), 4)
+    assert info["style"] == "any"  # the music classifier knows neither of the library's styles: any clip dances
+    frames = first.frame_range[1] - first.frame_range[0] + 1
+    assert abs(frames - SONG_S * scene.render.fps) <= 2
+    assert generate(scene, real, seed=5) == {"FINISHED"}
+    assert len(_takes(addon, rig)) == 2
+    assert rig.animation_data.action != first  # the new take plays; the first is kept on its track
+
+
+def test_the_shipped_library_when_no_folder_is_given(scene, addon, real):
+    assert generate(scene, real, engine="library", library="", root_motion="in-place") == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    (take,) = _takes(addon, rig)
+    info = addon.takes.take_info(take)
+    assert (info["engine"], info["library"], info["root_motion"]) == ("library", None, "in-place")
+    motion = addon.takes.take_motion(take)
+    assert np.ptp(motion.rotations[:, JOINT_INDEX["left_knee"]], axis=0).max() > 0.3  # it dances, not stands
+
+
+def test_continue_from_here_on_a_library_take_answers_in_one_line(scene, addon, real, library_folder):
+    generate(scene, real, engine="library", library=str(library_folder))
+    rig = bpy.data.objects["DanceNet Dancer"]
+    bpy.context.view_layer.objects.active = rig
+    scene.frame_set(scene.frame_start + 60)
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError) as report:
+        bpy.ops.dancenet.continue_dance()
+    assert "library engine does not continue a dance yet" in str(report.value)
+    assert "Traceback" not in str(report.value) and "\n" not in str(report.value).strip()
+    assert snapshot(scene) == before
+
+
+@pytest.mark.parametrize(("folder", "message"), [
+    ("missing", "motion library folder not found"),
+    ("empty", "is not built"),
+    ("unbuilt", "is not built"),
+])
+def test_a_bad_library_folder_is_reported_and_the_rig_kept(scene, addon, real, tmp_path, folder, message):
+    path = tmp_path / folder
+    if folder != "missing":
+        path.mkdir()
+    if folder == "unbuilt":
+        write_bvh(path / "clip.bvh", _clip(6.0, 110, 0.0))
+    rig = addon.rig.create_rig(bpy.context, with_mesh=False)
+    rig.animation_data_create().action = bpy.data.actions.new("user's own")
+    scene.dancenet.target, scene.dancenet.armature = "EXISTING", rig
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError) as report:
+        generate(scene, real, engine="library", library=str(path))
+    text = str(report.value)
+    assert text.startswith("Error: ") and message in text and "Traceback" not in text
+    before["props"].update(music_source="FILE", music_file=str(real), engine="library", library=str(path))
+    assert snapshot(scene) == before
+    assert rig.animation_data.action.name == "user's own"
+
+
+def test_batch_mode_dances_from_the_shipped_library(addon, tmp_path, capfd):
+    from blender_addon import batch
+
+    song = write_song(tmp_path / "batch song.wav", SONG_S)
+    code = batch.main([str(song), "--out", str(tmp_path / "out"), "--bvh", "--engine", "library", "--takes", "2"],
+                      generator=generate_dance)
+    out = capfd.readouterr().out
+    assert code == 0, out
+    assert out.splitlines()[-1] == "1 of 1 songs done", out
+    assert out.startswith("OK      batch song.wav: any, 6.0 s, 2 takes"), out
+    bvh = (tmp_path / "out" / "batch_song" / "batch_song.bvh").read_text()  # the take that plays, exported
+    frames = int(next(line for line in bvh.splitlines() if line.startswith("Frames:")).split(":")[1])
+    assert abs(frames - SONG_S * 25) <= 2, frames  # at the engine's own 25 fps
