@@ -29,7 +29,11 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
     if analysis:
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
-    for i, style in enumerate(pipeline.available_styles(), start=1):
+    if self.engine == "library":  # the styles of the library's clips
+        styles = pipeline.library_styles(pipeline.panel_settings(self)["library"])
+    else:
+        styles = pipeline.available_styles()
+    for i, style in enumerate(styles, start=1):
         label = _style_label(style)
         if style in probs:
             label = f"{label}  {probs[style]:.0%}"

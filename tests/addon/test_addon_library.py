@@ -1,6 +1,6 @@
 """Issue 25 item 5: the motion-library engine from the add-on: the panel's Engine and Library settings, a take
 danced from a library (one the test writes, and the shipped CMU one), Continue From Here and bad folders answered
-in one line, batch mode with --engine library."""
+in one line, the Style menu's styles from the library, batch mode with --engine library."""
 
 from __future__ import annotations
 
@@ -86,6 +86,24 @@ def test_a_take_from_a_library_then_another(scene, addon, real, library_folder):
     assert generate(scene, real, seed=5) == {"FINISHED"}
     assert len(_takes(addon, rig)) == 2
     assert rig.animation_data.action != first  # the new take plays; the first is kept on its track
+
+
+def test_the_style_menu_offers_the_librarys_styles(scene, addon):
+    props = scene.dancenet
+    with pytest.raises(TypeError):
+        props.style = "salsa"  # DanceNet's (here the fake model's) styles
+    props.engine, props.library = "library", ""
+    props.style = "salsa"  # the shipped CMU library's
+    names = [item[0] for item in addon.properties._styles(props, bpy.context)]
+    assert names == ["auto", "indian", "latin", "modern", "salsa", "swing"]
+    props.library = str(Path(bpy.app.tempdir) / "no such library")
+    assert [item[0] for item in addon.properties._styles(props, bpy.context)] == ["auto"]
+
+
+def test_a_style_of_the_library_is_danced(scene, addon, real, library_folder):
+    assert generate(scene, real, engine="library", library=str(library_folder), style="salsa") == {"FINISHED"}
+    (take,) = _takes(addon, bpy.data.objects["DanceNet Dancer"])
+    assert addon.takes.take_info(take)["style"] == "salsa"
 
 
 def test_the_shipped_library_when_no_folder_is_given(scene, addon, real):
