@@ -132,16 +132,6 @@ def _viterbi_numpy(
     return state, prev[state]
 
 
-def _backtrack_numpy(bt: np.ndarray, first_state: np.ndarray, multi_index: np.ndarray, state: int) -> np.ndarray:
-    """`_backtrack` in Python (a lookup a frame)."""
-    path = np.empty(bt.shape[0], np.uint32)
-    for frame in range(bt.shape[0] - 1, -1, -1):
-        path[frame] = state
-        m = multi_index[state]
-        state = first_state[state] if m < 0 else bt[frame, m]
-    return path
-
-
 class CompiledHMM:
     """Drop-in for a madmom HiddenMarkovModel where only `viterbi` is called (as the DBN trackers do)."""
 
@@ -198,7 +188,7 @@ class CompiledHMM:
             warnings.warn("-inf log probability during Viterbi decoding cannot find a valid path", RuntimeWarning,
                           stacklevel=2)
             return np.empty(0, np.uint32), log_prob
-        return jit.pick(_backtrack, _backtrack_numpy)(bt, self._tm[0], self.multi_index, state), log_prob
+        return jit.pick(_backtrack, _backtrack.py_func)(bt, self._tm[0], self.multi_index, state), log_prob
 
 
 KERNELS = (_viterbi, _backtrack)  # what jit.pick chooses between, for the warm-up
