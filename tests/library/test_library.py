@@ -12,13 +12,15 @@ from dancenet_core.beats import kinematic_velocity
 from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.cli import main
 from dancenet_core.data.motion_library import build_library
+from dancenet_core.evaluation.metrics import foot_sliding
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
 from dancenet_core.library.store import MotionLibrary
+from dancenet_core.library.transitions import hold_stance
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
-from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX
+from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0
 
@@ -216,3 +218,45 @@ def test_a_dance_from_the_real_capture(shared_data: Path, tmp_path: Path, monkey
     dance = choreograph(library, music, seed=0)[0]
     beats = motion_beats(dance.motion.positions()[:, :BODY_JOINTS], FPS) / FPS
     assert dance.motion.num_frames == 30 * FPS and len(beats) > 10
+
+
+def stander(seconds: float, bpm: float, drift_mps: float, phase: float = 0.0, lean: float = 0.0) -> Motion:
+    """Arms swinging a full cycle every two beats while both feet stand, the legs leaning `lean` rad forward, the
+    whole body creeping forward at `drift_mps` (a capture whose standing feet slide)."""
+    t = np.arange(int(round(seconds * FPS))) / FPS
+    s = np.sin(np.pi * bpm / 60.0 * t + phase)
+    rot = np.zeros((len(t), DEFAULT_SKELETON.num_joints, 3))
+    rot[:, JOINT_INDEX["left_shoulder"], 2] = -1.0 + 0.6 * s
+    rot[:, JOINT_INDEX["right_shoulder"], 2] = 1.0 + 0.6 * s
+    rot[:, JOINT_INDEX["left_elbow"], 1] = 0.8 * s
+    rot[:, [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]], 0] = lean
+    root = np.stack([np.zeros_like(t), np.full_like(t, 0.9), drift_mps * t], axis=1)
+    return Motion(rot, root, FPS)
+
+
+def slide_ratio(motion: Motion) -> float:
+    return foot_sliding(motion.end_effectors()[:, list(TOE_ENDS)], motion.fps).slide_ratio
+
+
+def test_a_standing_foot_is_held() -> None:
+    m = stander(10, 110, drift_mps=0.4)
+    assert slide_ratio(m) > 0.9  # the capture's feet slide (the test can fail)
+    stance = np.ones((m.num_frames - 1, 2), bool)
+    held = Motion(m.rotations, hold_stance(m, stance), m.fps, m.skeleton)
+    assert slide_ratio(held) < 0.05
+    assert np.allclose(held.root_positions[:, 1], m.root_positions[:, 1])  # only moved on the floor
+
+
+def test_standing_feet_stay_put_across_cuts() -> None:
+    """A dance cut from clips whose standing feet creep and whose legs lean differently (a blend moves the feet):
+    the feet stay put, through the blends too."""
+    lib = library_of(*[(f"stand{k}", stander(30, bpm, drift_mps=0.4, phase=2.0 * k, lean=0.15 * k))
+                       for k, bpm in enumerate((100, 112, 120))])
+    assert min(slide_ratio(lib.clip(c)) for c in range(lib.num_clips)) > 0.9
+    dance = choreograph(lib, song(40, 108), seed=2, settings=Settings(noise=1.0))[0]
+    assert dance.report.cuts, "the plan should cut between clips"
+    toes = dance.motion.end_effectors()[:, list(TOE_ENDS)]
+    speed = np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1) * FPS
+    blends = np.concatenate([np.arange(c - 1, min(c + 10, len(speed))) for c in dance.report.cuts])
+    assert slide_ratio(dance.motion) < 0.1
+    assert np.percentile(speed[blends], 90) < 0.25  # the metric's sliding speed
