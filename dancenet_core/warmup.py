@@ -87,9 +87,11 @@ POLL_S = 0.2  # how often the wait for that process looks at `cancelled`
 
 def _compile_elsewhere() -> subprocess.Popen:
     """This interpreter (in Blender, Blender's own Python) on this process's import path, isolated from the
-    user's Python settings; numba's cache folder comes with the environment. A thread marks each kernel
-    cached (dancenet_core.jit) as the process names it."""
-    child = subprocess.Popen([sys.executable, "-I", "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
+    user's Python settings but for this process's bytecode policy (-I drops PYTHONDONTWRITEBYTECODE, and an
+    extension's folder must stay as installed when its user asked for no .pyc); numba's cache folder comes with
+    the environment. A thread marks each kernel cached (dancenet_core.jit) as the process names it."""
+    no_pyc = ["-B"] if sys.dont_write_bytecode else []
+    child = subprocess.Popen([sys.executable, "-I", *no_pyc, "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              creationflags=getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0))  # fmt: skip
     threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
