@@ -4,7 +4,7 @@ path and heading carried across cuts, and every cut inertialised.
 A run is a stretch of figures that continue one clip; it is placed once (a turn about +Y and a shift on the floor),
 so that its first frame stands where the run before it would have gone on to (its next frame in its own clip)
 and faces the same way. At each cut the difference between that run's continuation and the new run (joint
-rotations and the root, over the two frames before the cut) fades out over `continuation.BLEND_S` with the same
+rotations and the root, over the two frames before the cut) fades out over `CUT_BLEND_S` with the same
 quintic as continuing a dance (no jump in place, speed or acceleration), as game engines inertialise. Last, the
 root is moved on the floor so that a standing foot stays put (`hold_stance`).
 """
@@ -17,17 +17,23 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
-from ..continuation import BLEND_S, _fade
+from ..continuation import _fade
 from ..motion import Motion
 from ..representation import foot_contacts
 from ..skeleton import TOE_ENDS
 from .store import MotionLibrary
 
+# How long a cut's offset takes to fade: longer than continuing a dance's 0.4 s (`continuation.BLEND_S`), because
+# a cut joins unrelated poses: of the frames a cut blends, those with a joint over the capture's 99th percentile of
+# a joint's step went 7.1% -> 5.7% (the capture itself: 7.2%) and the kinetic FID 9.7 -> 8.3 from 0.4 s to 0.5 s
+# (`dancenet evaluate --library-only --takes 2`). 0.6 s (5.3%) lets a large velocity difference carry the offset
+# further: the made clips' hands then stepped 1.21x their 99th percentile at a cut (1.16x at 0.5 s).
+CUT_BLEND_S = 0.5
 # A foot is held while it stands: near the floor and slower than this in its source clip. The capture's own contacts
 # (`representation.CONTACT_SPEED_MPS`, 0.35 m/s) at the largest time-warp (about 30% faster) are 0.45 m/s.
 HOLD_SPEED_MPS = 0.5
-# The hold's root correction is smoothed over this many frames (a Gaussian's sigma): a correction that starts and
-# stops with each contact shakes the body (the kinetic FID 8.5 -> 13.3 unsmoothed, 9.7 smoothed).
+# The hold's root correction is smoothed over this many frames (a Gaussian's sigma): one that starts and stops
+# with each contact shakes the body (see `hold_stance`).
 HOLD_SMOOTH_FRAMES = 2.0
 
 
@@ -131,7 +137,8 @@ def hold_stance(motion: Motion, stance: np.ndarray) -> np.ndarray:
     dances 0.50), the time-warp speeds that creep up (15% faster: 4 points more) and a blend moves a planted foot
     (0.68 of contact frames slid within 0.4 s of a cut); moving the root rather than the legs keeps every pose of
     the capture. On the evaluation (`dancenet evaluate --library-only --takes 2`) the foot slide went 0.613 -> 0.452
-    (real 0.500) and the root extent 1.17x -> 1.11x real's.
+    (real 0.500) and the root extent 1.17x -> 1.11x real's; the correction unsmoothed shook the body (kinetic FID
+    8.5 -> 13.3; smoothed 9.7).
     """
     toes = motion.end_effectors()[:, list(TOE_ENDS)]
     step = np.diff(toes[:, :, [0, 2]], axis=0)
@@ -152,7 +159,7 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, pos:
     nj = rot.shape[1]
     rot_diff = (Rotation.from_rotvec(rot[a - 2 : a].reshape(-1, 3))
                 * Rotation.from_rotvec(lead_rot.reshape(-1, 3)).inv()).as_rotvec().reshape(2, nj, 3)
-    m = min(b - a, max(2, int(round(BLEND_S * library.fps))))
+    m = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
     offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
     rot[a : a + m] = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
     root[a : a + m] += _fade(m, root[a - 2 : a] - lead_root)
