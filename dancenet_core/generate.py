@@ -37,6 +37,7 @@ class GenerationResult:
     timings: dict[str, float] = field(default_factory=dict)
     contacts: list[np.ndarray] = field(default_factory=list)  # [T, 2] predicted foot contacts per take
     start_s: float = 0.0  # where the dance starts in the song; beat times count from there
+    details: list[dict] = field(default_factory=list)  # per take, the engine's report on it (`Takes.details`)
 
 
 def check_request(request: DanceRequest) -> Engine:
@@ -79,6 +80,7 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
         downbeat_times=within(analysis.downbeat_times), tempo_bpm=analysis.tempo_bpm, duration_s=end - start,
         style=takes.style, style_probabilities=takes.style_probabilities,
         timings={"analysis_s": analysis_s, **takes.timings}, contacts=takes.contacts, start_s=start,
+        details=takes.details,
     )
 
 

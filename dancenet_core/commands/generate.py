@@ -102,7 +102,18 @@ def run(args: argparse.Namespace) -> int:
         summary = _write(args, stem, result, temp, t0)
     print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
           f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
+    for name, details in zip(_names(stem, len(result.details)), result.details, strict=True):
+        if "long_run_share" in details:
+            print(f"{name}: {_copied(details)}")
     return 0
+
+
+def _copied(details: dict) -> str:
+    """A library take's copied-run figures (`choreography.Report.summary`), so a user knows how much of the dance
+    is one clip played straight through."""
+    return (f"{100 * details['long_run_share']:.0f}% of frames from runs of one clip longer than "
+            f"{details['long_run_bars']} bars; longest run {details['longest_run_bars']} bars "
+            f"({details['longest_run_s']:.1f} s); largest time-warp {100 * details['max_warp']:.0f}%")
 
 
 def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: dict[Path, Path],
@@ -143,6 +154,7 @@ def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: 
         "beats": len(result.beat_times),
         "downbeats": len(result.downbeat_times),
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
+        "takes_details": result.details,  # per take, the engine's report (the library engine: the copied runs)
         "files": files,
     }
     write_text(temp[args.out / f"{stem}.json"], json.dumps(summary, indent=2, allow_nan=False) + "\n")

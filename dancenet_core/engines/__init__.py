@@ -43,6 +43,8 @@ class Takes:
     style_probabilities: dict[str, float] = field(default_factory=dict)  # empty when the user chose the style
     contacts: list[np.ndarray] = field(default_factory=list)  # [T, 2] foot contacts per take, if the engine has them
     timings: dict[str, float] = field(default_factory=dict)  # seconds per stage, for the summary
+    # Per take, what the engine reports about it for the summary (the library engine: how much is copied), or empty.
+    details: list[dict] = field(default_factory=list)
 
 
 class Engine(Protocol):

@@ -79,4 +79,5 @@ class LibraryEngine:
         dances = choreograph(library, analysis, request.seed, start, end, request.takes, chosen or None)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
-        return Takes([d.motion for d in dances], chosen or ANY_STYLE, probs, timings=timings)
+        return Takes([d.motion for d in dances], chosen or ANY_STYLE, probs, timings=timings,
+                     details=[d.report.summary() for d in dances])

@@ -3,10 +3,12 @@ forward at a known tempo, so the beats, bars and cuts are known; and bad librari
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+import soundfile as sf
 
 from dancenet_core.beats import kinematic_velocity
 from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
@@ -260,3 +262,35 @@ def test_standing_feet_stay_put_across_cuts() -> None:
     blends = np.concatenate([np.arange(c - 1, min(c + 10, len(speed))) for c in dance.report.cuts])
     assert slide_ratio(dance.motion) < 0.1
     assert np.percentile(speed[blends], 90) < 0.25  # the metric's sliding speed
+
+
+def clicks(path: Path, seconds: float, bpm: float, rate: int = 22050) -> Path:
+    """A song file of short clicks on the beat (every fourth louder), for the command line."""
+    audio = np.zeros(int(seconds * rate), np.float32)
+    for k, t in enumerate(np.arange(0.3, seconds - 0.1, 60.0 / bpm)):
+        i = int(t * rate)
+        audio[i : i + 400] += (0.8 if k % 4 == 0 else 0.4) * np.sin(np.arange(400) * 0.3) * np.exp(-np.arange(400) / 80)
+    sf.write(path, audio, rate)
+    return path
+
+
+def test_generate_reports_the_copied_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                          capsys: pytest.CaptureFixture) -> None:
+    """`dancenet generate --engine library` prints and records each take's copied-run figures."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    write_bvh(folder / "long.bvh", dancer(60, 110))
+    assert _cli("library", "build", str(folder)) == 0
+    wav = clicks(tmp_path / "song.wav", 12, 110)
+    out = tmp_path / "out"
+    capsys.readouterr()
+    assert _cli("generate", str(wav), "-o", str(out), "--engine", "library", "--library", str(folder),
+                "--takes", "2") == 0
+    printed = capsys.readouterr().out
+    details = json.loads((out / "song.json").read_text())["takes_details"]
+    assert len(details) == 2
+    for d in details:
+        assert d["long_run_bars"] == LONG_RUN_BARS and 0.0 <= d["long_run_share"] <= 1.0
+        assert d["longest_run_bars"] >= 1 and 0.0 < d["longest_run_s"] <= 12.0 and 0.0 <= d["max_warp"] <= 0.3
+    assert "song_take2: " in printed and "of frames from runs of one clip longer than 4 bars" in printed
