@@ -24,7 +24,7 @@ from ..errors import DanceNetError
 from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
-from .analysis import POSE_DIM
+from .analysis import POSE_DIM, frame_features
 from .store import MotionLibrary
 from .transitions import Figure, render
 
@@ -156,9 +156,12 @@ def _weights(settings: Settings, dim: int) -> np.ndarray:
 
 
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
-         style: str | None = None, settings: Settings = DEFAULT_SETTINGS) -> list[tuple[int, int]]:
+         style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
+         previous: np.ndarray | None = None) -> list[tuple[int, int]]:
     """The figure start (a beat of the library) for every bar of `grid`: the cheapest path through the bars
-    (see the module's docstring); `onset` [T] is the song's onset strength at MUSIC_FPS."""
+    (see the module's docstring); `onset` [T] is the song's onset strength at MUSIC_FPS. `previous`
+    [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued dance's last frame),
+    joined to as a figure's end is."""
     starts = figure_starts(library, grid.meter, style)
     nb = len(library.beats)
     if len(starts) == 0:
@@ -208,6 +211,10 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
         return np.where(fits, cost, np.inf)
 
     cost = unary(0)
+    if previous is not None:
+        transitions(grid.bars[0][1])  # sets the scale of a join's cost
+        p = previous.astype(np.float32) * np.sqrt(weights)
+        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut
     back = np.zeros((len(grid.bars), len(starts)), np.int32)
     for b in range(1, len(grid.bars)):
         total = cost[:, None] + transitions(grid.bars[b - 1][1])
@@ -222,18 +229,20 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
 
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
                 end_s: float | None = None, takes: int = 1, style: str | None = None,
-                settings: Settings = DEFAULT_SETTINGS) -> list[LibraryDance]:
+                settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None) -> list[LibraryDance]:
     """`takes` dances to the song's part from `start_s` to `end_s` (default: its end), cut from `library`; the same
-    seed gives the same dances."""
+    seed gives the same dances. With `kept` (a dance at the library's frame rate and skeleton, two frames or more,
+    that ends at `start_s`) each dance goes on from its last pose: chosen and blended as after a cut."""
     end = analysis.duration_s if end_s is None else min(end_s, analysis.duration_s)
     grid = song_grid(analysis, start_s, end)
     rng = np.random.default_rng(seed)
     onset = analysis.features[:, ONSET_COL]
+    previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings)
+        bars = plan(library, grid, onset, rng, style, settings, previous)
         figures = [Figure(s, n, grid.beats[a : a + n + 1]) for (s, n), (a, _) in zip(bars, grid.bars, strict=True)]
-        motion, cuts = render(library, figures, start_s, end)
+        motion, cuts = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(motion, report(library, figures, cuts, grid, start_s, end)))
     return dances
 

@@ -8,9 +8,13 @@ from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
+
+from ..constants import MIN_PART_S
 from ..engines import Takes
 from ..engines.styles import check_style, choose_style, load_style_model
 from ..errors import DanceNetError, GenerationCancelled
+from ..motion import Motion
 from ..music.features import MusicAnalysis
 from ..progress import StageProgress
 from ..request import DanceRequest
@@ -49,13 +53,14 @@ class LibraryEngine:
         return sorted({s for s in self.library(request).styles if s})
 
     def check(self, request: DanceRequest) -> None:
-        """The library is built and loads; the style is one of its clips'; a dance cannot be continued yet."""
+        """The library is built and loads; the style is one of its clips'; a dance continued is of its skeleton."""
+        library = self.library(request)
         styles = self.styles(request)
         if request.style not in ("auto", ANY_STYLE):
             check_style(request.style, styles)
-        if request.continue_from is not None:
-            raise DanceNetError("the library engine does not continue a dance yet; use --engine dancenet for "
-                                "--continue")
+        kept = request.continue_from
+        if kept is not None and kept.skeleton.names != library.skeleton.names:
+            raise DanceNetError("only a dance of the library's skeleton (DanceNet's 55 joints) can be continued")
 
     def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
               should_cancel: Callable[[], bool]) -> Takes:
@@ -76,8 +81,33 @@ class LibraryEngine:
         t = time.perf_counter()
         progress("dancing", 0.0)
         start, end = request.part(analysis.duration_s)
-        dances = choreograph(library, analysis, request.seed, start, end, request.takes, chosen or None)
+        kept = _kept(request, library.fps, end - start)
+        dances = choreograph(library, analysis, request.seed, start + (0.0 if kept is None else kept.duration), end,
+                             request.takes, chosen or None, kept=kept)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
-        return Takes([d.motion for d in dances], chosen or ANY_STYLE, probs, timings=timings,
+        motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]
+        return Takes(motions, chosen or ANY_STYLE, probs, timings=timings,
                      details=[d.report.summary() for d in dances])
+
+
+def _after(kept: Motion, new: Motion) -> Motion:
+    """The kept frames, then the new ones (the whole part, as `Takes` has it)."""
+    return Motion(np.concatenate([kept.rotations, new.rotations]),
+                  np.concatenate([kept.root_positions, new.root_positions]), new.fps, new.skeleton)
+
+
+def _kept(request: DanceRequest, fps: float, part_s: float) -> Motion | None:
+    """The continued dance's frames before `request.at_s` at the library's frame rate (its duration: where the new
+    dancing starts), or a one-line error when there is too little of it before, or of the part after."""
+    if request.continue_from is None:
+        return None
+    kept = request.continue_from.resampled(fps)
+    k = min(int(round(request.at_s * fps)), kept.num_frames)
+    if k < 2:
+        raise DanceNetError(f"the dance can be continued from {2 / fps:g} s to its end ({kept.duration:.2f} s), "
+                            f"got {request.at_s}")
+    if part_s - k / fps < MIN_PART_S:
+        raise DanceNetError(f"continuing at {request.at_s:g} s leaves less than {MIN_PART_S:g} s of the part of the "
+                            f"song to dance ({part_s:.1f} s)")
+    return kept[:k]

@@ -80,8 +80,12 @@ def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) ->
     return rot, root
 
 
-def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s: float) -> tuple[Motion, list[int]]:
-    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, and the frames of its cuts."""
+def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s: float,
+           kept: Motion | None = None) -> tuple[Motion, list[int]]:
+    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, and the frames of its cuts.
+    With `kept` (a dance at the library's frame rate that ends where this one starts) the first run goes on from
+    its last pose as a run goes on after a cut: placed where the kept root would have gone on to, facing its way,
+    and the difference from its last two frames faded out."""
     fps = library.fps
     n = max(2, int(round((end_s - start_s) * fps)))
     t = start_s + np.arange(n) / fps
@@ -106,21 +110,26 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
     bounds = [0, *cuts, n]
     for r, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
-        if r == 0:
+        if r == 0 and kept is None:
             shift = -Rotation.from_euler("y", turn).apply(root[0])[[0, 2]]
+        elif r == 0:  # the kept dance's last pose, its root carried on by its last step
+            turn, shift = _follow(kept.rotations[-1:], 2 * kept.root_positions[-1:] - kept.root_positions[-2:-1],
+                                  rot[0], root[0])
         else:
             # Where the previous run would have gone on to, and which way it would have faced.
             prev_clip = np.array([clip[a - 1]])
             step = pos[a - 1] - pos[a - 2] if a >= 2 else 1.0
             nrot, nroot = _sample(library, np.array([pos[a - 1] + step]), prev_clip)
-            nrot, nroot = _place(nrot, nroot, turn, shift)
-            new_turn = float(_yaw(nrot[:, 0])[0] - _yaw(rot[a : a + 1, 0])[0])
-            turn, shift = new_turn, nroot[0, [0, 2]] - Rotation.from_euler("y", new_turn).apply(root[a])[[0, 2]]
+            turn, shift = _follow(*_place(nrot, nroot, turn, shift), rot[a], root[a])
         placed_rot[a:b], placed_root[a:b] = _place(rot[a:b], root[a:b], turn, shift)
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
         contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
         if r > 0 and a >= 2:
-            _inertialise(library, placed_rot, placed_root, pos, clip, a, b, turn, shift)
+            _inertialise(library, placed_rot, placed_root, placed_rot[a - 2 : a].copy(),
+                         placed_root[a - 2 : a].copy(), pos, clip, a, b, turn, shift)
+        elif r == 0 and kept is not None:
+            _inertialise(library, placed_rot, placed_root, kept.rotations[-2:], kept.root_positions[-2:], pos, clip,
+                         a, b, turn, shift)
     stance = contact[1:] & contact[:-1]
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
@@ -150,16 +159,25 @@ def hold_stance(motion: Motion, stance: np.ndarray) -> np.ndarray:
     return root
 
 
-def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, pos: np.ndarray, clip: np.ndarray,
-                 a: int, b: int, turn: float, shift: np.ndarray) -> None:
-    """Fade the new run's difference from the old one's last two frames out over its first frames (in place)."""
+def _follow(next_rot: np.ndarray, next_root: np.ndarray, rot: np.ndarray, root: np.ndarray) -> tuple[float, np.ndarray]:
+    """The turn and floor shift that put a frame (rotations [J, 3], root [3]) where another run would have gone on
+    to (its next frame, placed: [1, J, 3], [1, 3]), facing the same way."""
+    turn = float(_yaw(next_rot[:, 0])[0] - _yaw(rot[None, 0])[0])
+    return turn, next_root[0, [0, 2]] - Rotation.from_euler("y", turn).apply(root)[[0, 2]]
+
+
+def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_rot: np.ndarray,
+                 old_root: np.ndarray, pos: np.ndarray, clip: np.ndarray, a: int, b: int, turn: float,
+                 shift: np.ndarray) -> None:
+    """Fade the new run's (from frame `a`) difference from the old one's last two frames (`old_rot` [2, J, 3],
+    `old_root` [2, 3]) out over its first frames (in place)."""
     step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
     lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
     lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
     nj = rot.shape[1]
-    rot_diff = (Rotation.from_rotvec(rot[a - 2 : a].reshape(-1, 3))
+    rot_diff = (Rotation.from_rotvec(old_rot.reshape(-1, 3))
                 * Rotation.from_rotvec(lead_rot.reshape(-1, 3)).inv()).as_rotvec().reshape(2, nj, 3)
     m = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
     offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
     rot[a : a + m] = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
-    root[a : a + m] += _fade(m, root[a - 2 : a] - lead_root)
+    root[a : a + m] += _fade(m, old_root - lead_root)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from doubles import write_song
-from scene_helpers import bpy, generate, panel_screenshot, snapshot
+from scene_helpers import bpy, generate, panel_screenshot, snapshot, world_heads
 
 from dancenet_core.bvh import write_bvh
 from dancenet_core.engines import ENGINES
@@ -116,17 +116,29 @@ def test_the_shipped_library_when_no_folder_is_given(scene, addon, real):
     assert np.ptp(motion.rotations[:, JOINT_INDEX["left_knee"]], axis=0).max() > 0.3  # it dances, not stands
 
 
-def test_continue_from_here_on_a_library_take_answers_in_one_line(scene, addon, real, library_folder):
+def test_continue_from_here_on_a_library_take(scene, addon, real, library_folder):
+    """Continue from here with the library engine: the take before the frame is kept, the rest danced anew."""
     generate(scene, real, engine="library", library=str(library_folder))
     rig = bpy.data.objects["DanceNet Dancer"]
+    first_take = rig.animation_data.action
     bpy.context.view_layer.objects.active = rig
+    frames = range(scene.frame_start, scene.frame_start + 120)
+    before = _heads(scene, rig, frames)
     scene.frame_set(scene.frame_start + 60)
-    before = snapshot(scene)
-    with pytest.raises(RuntimeError) as report:
-        bpy.ops.dancenet.continue_dance()
-    assert "library engine does not continue a dance yet" in str(report.value)
-    assert "Traceback" not in str(report.value) and "\n" not in str(report.value).strip()
-    assert snapshot(scene) == before
+    assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
+    assert rig.animation_data.action != first_take
+    after = _heads(scene, rig, frames)
+    assert np.abs(after[:60] - before[:60]).max() < 1e-4  # the frames before the continued one kept
+    assert np.abs(after[60:] - before[60:]).max() > 0.05  # from it on, another dance
+
+
+def _heads(scene, rig, frames: range) -> np.ndarray:
+    """World joint heads [F, 55, 3] of `rig` at `frames`."""
+    out = []
+    for f in frames:
+        scene.frame_set(f)
+        out.append(world_heads(rig, DEFAULT_SKELETON.names))
+    return np.array(out)
 
 
 @pytest.mark.parametrize(("folder", "message"), [

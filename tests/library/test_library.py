@@ -15,6 +15,7 @@ from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.cli import main
 from dancenet_core.data.motion_library import build_library
 from dancenet_core.evaluation.metrics import foot_sliding
+from dancenet_core.generate import generate_dance, shape_takes
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
 from dancenet_core.library.store import MotionLibrary
@@ -22,6 +23,7 @@ from dancenet_core.library.transitions import hold_stance
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
+from dancenet_core.request import DanceRequest
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0
@@ -294,3 +296,36 @@ def test_generate_reports_the_copied_runs(tmp_path: Path, monkeypatch: pytest.Mo
         assert d["long_run_bars"] == LONG_RUN_BARS and 0.0 <= d["long_run_share"] <= 1.0
         assert d["longest_run_bars"] >= 1 and 0.0 < d["longest_run_s"] <= 12.0 and 0.0 <= d["max_warp"] <= 0.3
     assert "song_take2: " in printed and "of frames from runs of one clip longer than 4 bars" in printed
+
+
+def test_continue_from_here_keeps_the_kept_frames_and_joins_without_a_jump(tmp_path: Path,
+                                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """A library take continued at 6 s: its frames before 6 s unchanged, no joint jumps at the join (the cut
+    test's bound), and different seeds dance the rest differently."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for k, bpm in enumerate((100, 110, 120, 104)):
+        write_bvh(folder / f"clip{k}.bvh", dancer(40, bpm, amplitude=0.3 + 0.1 * k, phase=k))
+    library, _ = build_library(folder)
+    wav = clicks(tmp_path / "song.wav", 20, 110)
+
+    def takes(seed: int, kept: Motion | None = None, at_s: float = 0.0) -> list[Motion]:
+        request = DanceRequest(wav, engine="library", library=folder, seed=seed, continue_from=kept, at_s=at_s)
+        return shape_takes(generate_dance(request).motions, request)
+
+    (first,) = takes(0)
+    one, other = (takes(seed, first, 6.0)[0] for seed in (1, 2))
+    j = int(round(6.0 * first.fps))
+    for m in (one, other):
+        assert m.num_frames == first.num_frames
+        assert np.array_equal(m.rotations[:j], first.rotations[:j])
+        assert np.array_equal(m.root_positions[:j], first.root_positions[:j])
+    steps = [np.linalg.norm(np.diff(library.clip(c).positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+             for c in range(library.num_clips)]
+    largest = np.concatenate(steps).max(axis=0)
+    for m in (one, other):
+        step = np.linalg.norm(np.diff(m.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+        assert (step[j - 2 : j + 12] <= 1.2 * largest).all()
+    assert not np.allclose(one.rotations[j:], other.rotations[j:])
+    assert not np.allclose(one.rotations[j:], first.rotations[j:])
