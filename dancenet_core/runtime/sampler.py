@@ -87,6 +87,29 @@ class Sampling:
     rng: np.random.Generator
 
 
+@numba.njit  # compiled into `_generate` and cached with it, not a kernel of its own
+def _component(out: np.ndarray, mixtures: int, draw: float, temperature: float) -> int:
+    """The mixture component: softmax over the logits `out[:mixtures]`, chosen by a uniform `draw` (at
+    temperature 0 the most likely one). One body for the kernel and, as `py_func`, its numpy twin: math.exp is
+    the C library's exp in both."""
+    m = out[0]
+    for i in range(1, mixtures):
+        m = max(m, out[i])
+    total = 0.0
+    for i in range(mixtures):
+        total += math.exp(out[i] - m)
+    u = draw * total
+    acc = 0.0
+    for i in range(mixtures):
+        acc += math.exp(out[i] - m)
+        if temperature <= 0.0:  # deterministic: the most likely component's mean
+            if out[i] == m:
+                return i
+        elif u < acc:
+            return i
+    return mixtures - 1
+
+
 @numba.njit(cache=True)
 def _generate(  # a compiled kernel takes its arrays flat
     frames, outputs, t0, t1, queues, dilations,
@@ -133,25 +156,7 @@ def _generate(  # a compiled kernel takes its arrays flat
             if teacher.shape[0] > 0:
                 frames[t, b] = teacher[t, b]
                 continue
-            # Mixture component: softmax over logits, chosen by a uniform draw.
-            m = out[0]
-            for i in range(1, mixtures):
-                m = max(m, out[i])
-            total = 0.0
-            for i in range(mixtures):
-                total += np.exp(np.float64(out[i] - m))
-            u = unif[t, b] * total
-            comp = mixtures - 1
-            acc = 0.0
-            for i in range(mixtures):
-                acc += np.exp(np.float64(out[i] - m))
-                if temperature <= 0.0:  # deterministic: the most likely component's mean
-                    if out[i] == m:
-                        comp = i
-                        break
-                elif u < acc:
-                    comp = i
-                    break
+            comp = _component(out, mixtures, unif[t, b], temperature)
             mu0 = mixtures + comp * cont
             ls0 = mixtures + mixtures * cont + comp * cont
             for j in range(cont):
@@ -216,23 +221,7 @@ def _generate_numpy(
             if teacher.shape[0] > 0:
                 frames[t, b] = teacher[t, b]
                 continue
-            m = out[0]
-            for i in range(1, mixtures):
-                m = max(m, out[i])
-            total = 0.0
-            for i in range(mixtures):
-                total += math.exp(out[i] - m)
-            u = float(unif[t, b]) * total
-            comp, acc = mixtures - 1, 0.0
-            for i in range(mixtures):
-                acc += math.exp(out[i] - m)
-                if temperature <= 0.0:
-                    if out[i] == m:
-                        comp = i
-                        break
-                elif u < acc:
-                    comp = i
-                    break
+            comp = _component.py_func(out, mixtures, float(unif[t, b]), temperature)
             mu0, ls0 = mixtures + comp * cont, mixtures + mixtures * cont + comp * cont
             sigma = np.zeros(cont, np.float32)
             for j, raw in zip(kept, (out[ls0 + kept] - min_log_sigma).tolist(), strict=True):
