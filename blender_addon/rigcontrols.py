@@ -8,7 +8,7 @@ IK/FK switches on FK) keeps the rig whole: an animator refines the dance with th
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, replace
 
 from .rigdef import REQUIRED_JOINTS
@@ -37,42 +37,43 @@ class ControlRig:
     aimed: frozenset[str] = frozenset()
 
 
-def _rigify() -> dict[str, tuple[str, ...]]:
-    # Below the torso's pivot Rigify's FK spine hangs downwards: spine_fk.001 turns the lower back, and
-    # spine_fk under it the hips bone.
-    controls = {"pelvis": ("torso", "spine_fk"), "spine1": ("spine_fk.001",), "spine2": ("spine_fk.002",),
-                "spine3": ("spine_fk.003",), "neck": ("neck",), "head": ("head",)}  # fmt: skip
-    for side, s in _SIDES:
-        for joint, bone in (("collar", "shoulder"), ("shoulder", "upper_arm_fk"), ("elbow", "forearm_fk"),
-                            ("wrist", "hand_fk"), ("hip", "thigh_fk"), ("knee", "shin_fk"), ("ankle", "foot_fk"),
-                            ("foot", "toe_fk")):  # fmt: skip
-            controls[f"{side}_{joint}"] = (f"{bone}.{s}",)
-        for finger in _FINGERS:
+def _controls(axial: dict[str, tuple[str, ...]], limbs: tuple[tuple[str, str], ...], side: Callable[[str], str],
+              finger: Callable[[str, int], str]) -> dict[str, tuple[str, ...]]:
+    """A family's controls: its axial ones, then per side each limb joint's FK bone and each finger joint's."""
+    controls = dict(axial)
+    for name, s in _SIDES:
+        for joint, bone in limbs:
+            controls[f"{name}_{joint}"] = (f"{bone}.{side(s)}",)
+        for f in _FINGERS:
             for n in (1, 2, 3):
-                controls[f"{side}_{finger}{n}"] = (f"{'' if finger == 'thumb' else 'f_'}{finger}.0{n}.{s}",)
+                controls[f"{name}_{f}{n}"] = (f"{finger(f, n)}.{side(s)}",)
     return controls
 
 
-def _auto_rig_pro() -> dict[str, tuple[str, ...]]:
-    controls = {"pelvis": ("c_root_master.x", "c_root.x"), "spine1": ("c_spine_01.x",), "spine2": ("c_spine_02.x",),
-                "spine3": ("c_spine_03.x",), "neck": ("c_neck.x",), "head": ("c_head.x",)}  # fmt: skip
-    for side, s in _SIDES:
-        for joint, bone in (("collar", "c_shoulder"), ("shoulder", "c_arm_fk"), ("elbow", "c_forearm_fk"),
-                            ("wrist", "c_hand_fk"), ("hip", "c_thigh_fk"), ("knee", "c_leg_fk"), ("ankle", "c_foot_fk"),
-                            ("foot", "c_toes_fk")):  # fmt: skip
-            controls[f"{side}_{joint}"] = (f"{bone}.{s.lower()}",)
-        for finger in _FINGERS:
-            for n in (1, 2, 3):
-                controls[f"{side}_{finger}{n}"] = (f"c_{finger}{n}.{s.lower()}",)
-    return controls
+# Below the torso's pivot Rigify's FK spine hangs downwards: spine_fk.001 turns the lower back, and
+# spine_fk under it the hips bone.
+_RIGIFY = _controls(
+    {"pelvis": ("torso", "spine_fk"), "spine1": ("spine_fk.001",), "spine2": ("spine_fk.002",),
+     "spine3": ("spine_fk.003",), "neck": ("neck",), "head": ("head",)},
+    (("collar", "shoulder"), ("shoulder", "upper_arm_fk"), ("elbow", "forearm_fk"), ("wrist", "hand_fk"),
+     ("hip", "thigh_fk"), ("knee", "shin_fk"), ("ankle", "foot_fk"), ("foot", "toe_fk")),
+    lambda s: s, lambda f, n: f"{'' if f == 'thumb' else 'f_'}{f}.0{n}",
+)  # fmt: skip
+_AUTO_RIG_PRO = _controls(
+    {"pelvis": ("c_root_master.x", "c_root.x"), "spine1": ("c_spine_01.x",), "spine2": ("c_spine_02.x",),
+     "spine3": ("c_spine_03.x",), "neck": ("c_neck.x",), "head": ("c_head.x",)},
+    (("collar", "c_shoulder"), ("shoulder", "c_arm_fk"), ("elbow", "c_forearm_fk"), ("wrist", "c_hand_fk"),
+     ("hip", "c_thigh_fk"), ("knee", "c_leg_fk"), ("ankle", "c_foot_fk"), ("foot", "c_toes_fk")),
+    str.lower, lambda f, n: f"c_{f}{n}",
+)  # fmt: skip
 
 
 # Rigify's limbs switch with IK_FK on their parent bone, Auto-Rig Pro's with ik_fk_switch on the IK
 # controls; both read 1.0 as FK.
 FAMILIES = (
-    ControlRig("Rigify", _rigify(), "root", {"IK_FK": 1.0}, ("DEF-", "ORG-"),
+    ControlRig("Rigify", _RIGIFY, "root", {"IK_FK": 1.0}, ("DEF-", "ORG-"),
                frozenset({"spine1", "spine2", *(f"{side}_{f}1" for side, _ in _SIDES for f in _FINGERS)})),
-    ControlRig("Auto-Rig Pro", _auto_rig_pro(), "c_traj", {"ik_fk_switch": 1.0}),
+    ControlRig("Auto-Rig Pro", _AUTO_RIG_PRO, "c_traj", {"ik_fk_switch": 1.0}),
 )
 
 
