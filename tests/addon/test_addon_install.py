@@ -6,6 +6,8 @@ sound strip keys the rig with the shipped model and never imports torch. `make t
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import importlib.util
 import os
 import re
@@ -146,3 +148,30 @@ def test_linux_zip_installs_into_a_fresh_blender_and_dances(zips: dict[str, Path
     cache = user / "extensions" / ".user" / "user_default" / "dancenet" / "cache"
     assert f"CACHES {cache} {cache / 'numba'}" in out
     assert (cache / "features").is_dir() and any((cache / "numba").rglob("*.nbi"))
+
+
+def test_every_wheel_carries_its_bytecode_for_each_python_it_serves(zips: dict[str, Path], tmp_path: Path) -> None:
+    """Blender unpacks wheels without compiling them: the first Generate Dance would compile scipy's and numba's
+    modules. Each wheel carries a .pyc per module for each Python that serves it (both here: this project's venvs),
+    each listed in its RECORD with its hash, so that uninstalling removes it."""
+    assert sorted(build_addon.bytecode_pythons()) == sorted(build_addon.PYTHONS)
+    for platform, path in zips.items():
+        with zipfile.ZipFile(path) as z:
+            wheels = [n for n in z.namelist() if n.endswith(".whl")]
+            for name in wheels:
+                with zipfile.ZipFile(z.extract(name, tmp_path / platform)) as wheel:
+                    files = set(wheel.namelist())
+                    record = wheel.read(next(f for f in files if f.endswith(".dist-info/RECORD"))).decode()
+                    listed = {line.split(",")[0]: line.split(",")[1] for line in record.splitlines() if line}
+                    pycs = {f for f in files if f.endswith(".pyc")}
+                    for py in build_addon.PYTHONS:
+                        if not _serves(name, py, platform):
+                            continue
+                        tag = f"cpython-{py.replace('.', '')}"
+                        assert any(tag in f for f in pycs), (platform, name, py)
+                    for f in pycs:
+                        digest = hashlib.sha256(wheel.read(f)).digest()
+                        assert listed[f] == "sha256=" + base64.urlsafe_b64encode(digest).rstrip(b"=").decode()
+                    modules = {f for f in files if f.endswith(".py") and "/tests/" not in f and "__pycache__" not in f}
+                    if name.startswith("wheels/dancenet-"):  # ours: every module, for both Pythons
+                        assert len(pycs) == 2 * len(modules), (len(pycs), len(modules))
