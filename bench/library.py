@@ -32,9 +32,9 @@ def main() -> int:
         os.environ["DANCENET_CACHE"] = str(Path(tmp) / "cache")
         from dancenet_core.bvh import write_bvh
         from dancenet_core.data.build import build_dataset
-        from dancenet_core.data.motion_library import build_library
         from dancenet_core.data.split import load_split
         from dancenet_core.environment import default_data_dir
+        from dancenet_core.library.build import build_library
         from dancenet_core.library.choreography import choreograph
         from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
         from dancenet_core.representation import decode

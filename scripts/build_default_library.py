@@ -15,8 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from dancenet_core.data.motion_library import build_library
 from dancenet_core.environment import default_data_dir
+from dancenet_core.library.build import build_library
 from dancenet_core.library.store import DEFAULT_LIBRARY
 
 # CMU subject -> the dance its trials hold (the CMU index; data/README.md's cmu_dance table).

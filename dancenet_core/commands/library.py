@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.motion_library import build_library
+from ..library.build import build_library
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -15,21 +15,22 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from tqdm import tqdm
 
 from ..atomic import atomic_open
 from ..bvh import read_bvh
 from ..environment import cache_root
+from ..floor import floor_offset, floor_track
+from ..jointmap import CMU, SourcePose, source_pose
 from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
 from ..music.features import analyze_music, music_at_frames
 from ..representation import encode
-from ..skeleton import BODY_JOINTS, TOE_ENDS, Skeleton
+from ..skeleton import BODY_JOINTS, Skeleton
 from .cmu_dance import Clip
 from .dance_with_melody import P, Recording, load_positions, read_manifest
 from .fit import fit_errors, fit_sequence, performer_skeleton, stretch_errors
-from .retarget import CMU, Retargeted, SourcePose, fit_targets, retarget, source_pose
+from .retarget import Retargeted, fit_targets, retarget
 
 MODEL_FPS = 25.0
 BUILD_VERSION = "dataset-2"  # the skeleton fits (slow); paired files carry their own version
@@ -39,24 +40,6 @@ PAIR_VERSION = "pair-3"
 def dataset_cache_dir() -> Path:
     """Where the fits and paired files are cached (inside the one cache folder, by build version)."""
     return cache_root() / BUILD_VERSION
-
-
-def floor_offset(motion: Motion) -> float:
-    """Height of the floor under this clip: a low percentile of the lower toe end."""
-    toes = motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
-    return float(np.percentile(toes, 2))
-
-
-def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5) -> np.ndarray:
-    """The floor's height under the dancer, frame by frame [T].
-
-    Most captures drift upward by 0.2-0.5 m over a minute (the toes of a waltz end up 0.4 m above where
-    they started). A ballroom dancer has a foot on the floor within any two seconds, so the lowest toe
-    end over a 2-s window, smoothed, follows the floor; subtracting it removes the drift.
-    """
-    toes = motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
-    low = minimum_filter1d(toes, size=max(1, int(window_s * motion.fps)), mode="nearest")
-    return gaussian_filter1d(low, smooth_s * motion.fps, mode="nearest")
 
 
 @dataclass

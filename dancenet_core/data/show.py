@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DanceNetError
+from ..jointmap import mapped_ancestor
 from ..motion import Motion
 from ..plotting import pyplot
 from ..skeleton import DEFAULT_SKELETON
 from .build import dataset_cache_dir, fitted_clip, fitted_motion
 from .cmu_dance import read_cmu_manifest
 from .dance_with_melody import P, load_positions, read_manifest
-from .retarget import mapped_ancestor
 
 # The source viewer's lines (utils/draw.py), with mid-points written as pairs.
 _SOURCE_LINES = [

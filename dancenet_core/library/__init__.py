@@ -8,5 +8,5 @@
   the music, tempo within +-15%, transition cost), time-warping each to the song's beats, and joining them
   (`transitions.py`: inertialised cuts, the root path carried).
 - `build.py`: reading a folder of BVH clips (our 55 joints in any unit and up axis, or CMU's names, retargeted) into
-  a library; building only (it may use `data/`), never imported when dancing.
+  a library; torch-free and without `data/` (the add-on builds in Blender), never imported when dancing.
 """

@@ -11,8 +11,9 @@ from scipy.spatial.transform import Rotation
 from dancenet_core.bvh import read_bvh, write_bvh
 from dancenet_core.data.build import fitted_clip
 from dancenet_core.data.cmu_dance import Clip, read_cmu_manifest
-from dancenet_core.data.retarget import CMU, RetargetError, retarget
+from dancenet_core.data.retarget import retarget
 from dancenet_core.errors import DanceNetError
+from dancenet_core.jointmap import CMU, RetargetError
 from dancenet_core.kinematics import fk_numpy
 from dancenet_core.motion import Motion
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX, JOINT_NAMES, MIRROR_INDEX, PARENTS, Skeleton

@@ -3,12 +3,15 @@
 
 A clip is read when it holds our 55 joints (`dancenet generate`'s BVH, with or without a root bone, in metres,
 centimetres, millimetres or inches: `rootmotion.read_dance_bvh`) or CMU's joint names (as AMASS writes them, in
-metres or centimetres: retargeted by the CMU joint map, `data/retarget.py`). Either may be Y- or Z-up (the head
-above the pelvis tells). CMU clips take each mapped joint's world rotation (the rest poses agree), without the
-dataset build's position fit: the fit needs torch and about 35 s per minute of motion, this a fraction of a second.
-Clips are resampled to the library's 25 fps and put on the floor (`floor_track`). A clip's style is its folder's
-name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`). Anything else
-in the folder is left out with a one-line note.
+metres or centimetres: retargeted by the CMU joint map, `jointmap.py`). Either may be Y- or Z-up (the head above
+the pelvis tells). CMU clips take each mapped joint's world rotation (the rest poses agree), without the dataset
+build's position fit: the fit needs torch and about 35 s per minute of motion, this a fraction of a second.
+Clips are resampled to the library's 25 fps and put on the floor (`floor.floor_track`). A clip's style is its
+folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`).
+Anything else in the folder is left out with a one-line note.
+
+Torch-free and without the data package (the add-on's Build Library runs it inside Blender on a worker thread:
+`progress` and `should_cancel`); only building imports it, never dancing.
 """
 
 from __future__ import annotations
@@ -22,15 +25,16 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..bvh import read_bvh
-from ..errors import DanceNetError, first_line
+from ..errors import DanceNetError, GenerationCancelled, first_line
+from ..floor import floor_track
+from ..jointmap import CMU, initial_rotations, performer_skeleton, source_pose, up_rotation
 from ..kinematics import fk_numpy
-from ..library.analysis import analyze_clip
-from ..library.store import LIBRARY_FPS, MotionLibrary, clip_files, library_path
 from ..motion import Motion
+from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
-from .build import floor_track
-from .retarget import CMU, initial_rotations, performer_skeleton, source_pose, up_rotation
+from .analysis import analyze_clip
+from .store import LIBRARY_FPS, MotionLibrary, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
 DANCER_HEIGHT_M = 1.7  # the unit of a CMU clip is the one that makes its rest pose nearest this tall
@@ -92,9 +96,12 @@ def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
     return styles
 
 
-def build_library(folder: str | Path, force: bool = False,
-                  report: Callable[[str], object] = print) -> tuple[MotionLibrary, Path]:
-    """The library of `folder`, built now (or read from the cache when its content was built before)."""
+def build_library(folder: str | Path, force: bool = False, report: Callable[[str], object] = print,
+                  progress: StageProgress | None = None,
+                  should_cancel: Callable[[], bool] | None = None) -> tuple[MotionLibrary, Path]:
+    """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
+    hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
+    written)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
@@ -109,7 +116,11 @@ def build_library(folder: str | Path, force: bool = False,
         raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style)")
     styles = clip_styles(folder, files)
     clips, notes = [], []
-    for f in files:
+    for i, f in enumerate(files):
+        if should_cancel is not None and should_cancel():
+            raise GenerationCancelled
+        if progress is not None:
+            progress(f"reading {f.name}", i / len(files))
         try:
             motion = read_clip(f)
         except DanceNetError as e:
