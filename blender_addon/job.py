@@ -1,5 +1,5 @@
-"""The generator on a worker thread (the thread never touches bpy; the main thread polls it), and how an error
-reaches the user."""
+"""Work on a worker thread (a generation, a library build; the thread never touches bpy, the main thread polls it),
+and how an error reaches the user."""
 
 from __future__ import annotations
 
@@ -9,33 +9,36 @@ from collections.abc import Callable
 from typing import Any
 
 from dancenet_core.errors import DanceNetError
+from dancenet_core.progress import StageProgress
 from dancenet_core.request import DanceRequest
 
 from . import warming
 
 Generator = Callable[..., Any]  # dancenet_core.generate.generate_dance or a stand-in with its signature
+# What a job runs on its worker thread, given where to report progress and what says to stop: the result.
+Work = Callable[[StageProgress, Callable[[], bool]], Any]
 
 
-def error_message(error: BaseException) -> str:
+def error_message(error: BaseException, doing: str = "Generation") -> str:
     """One line for the user; unexpected errors also go to the console with their traceback."""
     if isinstance(error, DanceNetError):
         return str(error)
     traceback.print_exception(error)
-    return f"Generation failed: {type(error).__name__}: {error} (details in the system console)"
+    return f"{doing} failed: {type(error).__name__}: {error} (details in the system console)"
 
 
-class GenerationJob:
-    """The generator on a worker thread. The thread never touches bpy; the main thread polls it."""
+class Job:
+    """Work on a worker thread (a generation, a library build). The thread never touches bpy; the main thread
+    polls it."""
 
-    def __init__(self, generator: Callable[[], Generator], request: DanceRequest) -> None:
-        self._generator = generator
-        self._request = request
+    def __init__(self, work: Work, name: str) -> None:
+        self._work = work
         self._lock = threading.Lock()
         self._cancel = threading.Event()
         self._stage, self._fraction = "Starting", 0.0
         self.result: Any = None
         self.error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="dancenet-generate", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
         self._thread.start()
@@ -47,8 +50,7 @@ class GenerationJob:
     def _run(self) -> None:
         try:
             with warming.LOCK:  # never beside a warm-up step (warming.py)
-                self.result = self._generator()(self._request, progress=self._progress,
-                                                should_cancel=self._cancel.is_set)
+                self.result = self._work(self._progress, self._cancel.is_set)
         except Exception as e:  # reported on the main thread; a cancelled job's error is dropped
             self.error = e
 
@@ -65,3 +67,10 @@ class GenerationJob:
 
     def join(self, timeout: float | None = None) -> None:
         self._thread.join(timeout)
+
+
+def generation(generator: Callable[[], Generator], request: DanceRequest) -> Job:
+    """The generator run on `request`; the generator itself is fetched on the worker (its first import costs
+    seconds, which must not freeze the UI)."""
+    return Job(lambda progress, should_cancel: generator()(request, progress=progress, should_cancel=should_cancel),
+               "dancenet-generate")

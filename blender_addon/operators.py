@@ -1,8 +1,9 @@
-"""Operators: Generate Dance (non-blocking), cancel, exports, bone-map editing, rig."""
+"""Operators: Generate Dance and Build Library (non-blocking), cancel, exports, bone-map editing, rig."""
 
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, export, job, pipeline, rig, rigchoice, takes
+from . import bonemap, export, job, library, pipeline, rig, rigchoice, takes
 
 _REDRAW_AREAS = frozenset({"VIEW_3D", "SEQUENCE_EDITOR", "PREFERENCES"})
 
@@ -24,47 +25,32 @@ def _redraw(context: bpy.types.Context) -> None:
                 area.tag_redraw()
 
 
-class _Generate:
-    """Generation on a worker thread with progress, Esc to cancel; subclasses say what to generate (`plan`)."""
+class _Background:
+    """Work on a worker thread, its progress in the status bar and the panel, Esc to cancel: subclasses say what to
+    do (`plan`, on the main thread, then `_begin` starts the job) and what its result makes (`finish`, back on the
+    main thread, a line for the report)."""
 
-    bl_options = {"REGISTER", "UNDO"}
+    doing = "The job"  # named in the line of an unexpected error
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return not context.window_manager.dancenet.running
 
-    def plan(self, context: bpy.types.Context) -> pipeline.Plan:
-        """What to generate and where it goes, from the panel's settings."""
-        return pipeline.prepare(context.scene)
-
-    def execute(self, context: bpy.types.Context) -> set[str]:
-        """The blocking path: scripts, batch mode, and any call without a window to stay responsive in."""
-        try:
-            plan = self.plan(context)
-            applied = pipeline.generate_now(context, plan, pipeline.load_generator())
-        except DanceNetError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        self.report({"INFO"}, applied.summary())
-        return {"FINISHED"}
-
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            plan = self.plan(context)
+            planned = self.plan(context)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        self._begin(context, plan)
+        self._begin(context, planned)
         context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
-    def _begin(self, context: bpy.types.Context, plan: pipeline.Plan) -> None:
+    def _start(self, context: bpy.types.Context, work: job.Job) -> None:
         """Start the worker and the timer that polls it."""
-        self._plan = plan
-        # The core is imported on the worker thread too (seconds on a first run), so the UI does not freeze.
-        self._job = job.GenerationJob(pipeline.load_generator, plan.request)
+        self._job = work
         self._job.start()
         runtime = context.window_manager.dancenet
         runtime.running, runtime.cancel_requested = True, False
@@ -96,20 +82,49 @@ class _Generate:
             return {"PASS_THROUGH"}
         self._end(context)
         if self._job.error is not None:
-            self.report({"ERROR"}, job.error_message(self._job.error))
+            self.report({"ERROR"}, job.error_message(self._job.error, self.doing))
             return {"CANCELLED"}
         try:
-            applied = pipeline.apply_result(context, self._plan, self._job.result)
+            line = self.finish(context, self._job.result)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, applied.summary())
+        self.report({"INFO"}, line)
         return {"FINISHED"}
 
     def cancel(self, context: bpy.types.Context) -> None:
         """Esc, the Cancel button, or Blender ending the operator (file load): drop the job, touch nothing."""
         self._job.cancel()
         self._end(context)
+
+
+class _Generate(_Background):
+    """Generation; subclasses say what to generate (`plan`)."""
+
+    bl_options = {"REGISTER", "UNDO"}
+    doing = "Generation"
+
+    def plan(self, context: bpy.types.Context) -> pipeline.Plan:
+        """What to generate and where it goes, from the panel's settings."""
+        return pipeline.prepare(context.scene)
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        """The blocking path: scripts, batch mode, and any call without a window to stay responsive in."""
+        try:
+            plan = self.plan(context)
+            applied = pipeline.generate_now(context, plan, pipeline.load_generator())
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, applied.summary())
+        return {"FINISHED"}
+
+    def _begin(self, context: bpy.types.Context, plan: pipeline.Plan) -> None:
+        self._plan = plan
+        self._start(context, job.generation(pipeline.load_generator, plan.request))
+
+    def finish(self, context: bpy.types.Context, result: Any) -> str:
+        return pipeline.apply_result(context, self._plan, result).summary()
 
 
 class DANCENET_OT_generate(_Generate, bpy.types.Operator):
@@ -133,6 +148,39 @@ class DANCENET_OT_continue(_Generate, bpy.types.Operator):
 
     def plan(self, context: bpy.types.Context) -> pipeline.Plan:
         return pipeline.prepare_continue(context.scene, export_target(context))
+
+
+class DANCENET_OT_build_library(_Background, bpy.types.Operator):
+    """Read and analyse the Library folder's BVH clips (in the background; Esc cancels), so that the library engine
+    can dance from them"""
+
+    bl_idname = "dancenet.build_library"
+    bl_label = "Build Library"
+    doing = "Library build"
+
+    def plan(self, context: bpy.types.Context) -> Path:
+        """The folder to build, from the panel's Library setting."""
+        folder = library.chosen_folder(context.scene.dancenet)
+        if folder is None:
+            raise DanceNetError("Choose the Library folder of BVH clips to build (the shipped library needs no build)")
+        return folder
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        """The blocking path: scripts and any call without a window to stay responsive in."""
+        try:
+            line = library.build_now(self.plan(context))
+        except DanceNetError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        _redraw(context)  # the Style menu and the folder's state
+        self.report({"INFO"}, line)
+        return {"FINISHED"}
+
+    def _begin(self, context: bpy.types.Context, folder: Path) -> None:
+        self._start(context, job.Job(partial(library.build, folder), "dancenet-build-library"))
+
+    def finish(self, context: bpy.types.Context, result: str) -> str:
+        return result
 
 
 class DANCENET_OT_choose_take(bpy.types.Operator):
@@ -367,6 +415,7 @@ class DANCENET_OT_add_rig(bpy.types.Operator):
 CLASSES = (
     DANCENET_OT_generate,
     DANCENET_OT_continue,
+    DANCENET_OT_build_library,
     DANCENET_OT_choose_take,
     DANCENET_OT_cancel,
     DANCENET_OT_export_bvh,

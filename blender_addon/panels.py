@@ -9,7 +9,7 @@ from dancenet_core.errors import DanceNetError
 from dancenet_core.request import panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import bonemap, operators, rigchoice, takes
+from . import bonemap, library, operators, rigchoice, takes
 from .menus import DANCENET_MT_presets
 from .rigdef import REQUIRED_JOINTS
 
@@ -53,6 +53,18 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     row.prop_search(props, "fix_bone", props.armature.data, "bones", text="")
     row.operator("dancenet.fix_bone", text="", icon="CHECKMARK")
     box.operator("dancenet.save_bone_map", icon="FILE_TICK")
+
+
+def _draw_library_build(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) -> None:
+    """Build Library beside what the chosen folder is (not built yet, built, missing); nothing while the folder is
+    empty (the shipped library, built)."""
+    folder = library.chosen_folder(props)
+    if folder is None:
+        return
+    text, icon = library.folder_state(folder)
+    row = layout.row(align=True)
+    row.operator("dancenet.build_library", icon="FILE_REFRESH")
+    row.label(text=text, icon=icon)
 
 
 def _draw_frame_rate(layout: bpy.types.UILayout, render: bpy.types.RenderSettings) -> None:
@@ -149,6 +161,8 @@ class _Dance(_SubPanel):
             if name == "library" and props.engine != "library":  # a library folder means nothing to DanceNet
                 continue
             col.prop(props, name)
+            if name == "library":
+                _draw_library_build(col, props)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)
         col.prop(props, "use_part")

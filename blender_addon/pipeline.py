@@ -46,17 +46,6 @@ def available_styles() -> list[str]:
     return list(_styles_cache)
 
 
-def library_styles(folder: Path | None) -> list[str]:
-    """The styles of a built motion library's clips (None: the shipped one), or [] while it is missing or not
-    built (Generate Dance then says why): the Style menu's choices for the library engine."""
-    try:
-        from dancenet_core.engines import get_engine
-
-        return get_engine("library").styles(DanceRequest(Path(), library=folder))
-    except (ImportError, DanceNetError, OSError):
-        return []
-
-
 @dataclass
 class Placement:
     """Where the result goes. Names, not bpy references: those can die while the generator runs."""

@@ -12,7 +12,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 from dancenet_core.request import Option, panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import operators, pipeline, takes
+from . import library, operators, pipeline, takes
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
 _style_items: list[tuple[str, str, str, int]] = []
@@ -30,7 +30,7 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
     if self.engine == "library":  # the styles of the library's clips
-        styles = pipeline.library_styles(pipeline.panel_settings(self)["library"])
+        styles = library.library_styles(library.chosen_folder(self))
     else:
         styles = pipeline.available_styles()
     for i, style in enumerate(styles, start=1):

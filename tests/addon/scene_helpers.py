@@ -130,3 +130,20 @@ def panel_screenshot():
         sys.modules[spec.name] = module  # dataclasses look their module up while the class is built
         spec.loader.exec_module(module)
     return sys.modules["panel_screenshot"]
+
+
+def modal_stand_in(operator: type):
+    """A background operator's modal methods (Generate Dance's, Build Library's) on a plain object that keeps its
+    reports: bpy as a module has no event loop to run the operator itself."""
+
+    class StandIn:
+        _begin, _start, _show, _end = operator._begin, operator._start, operator._show, operator._end
+        modal, cancel, finish, doing = operator.modal, operator.cancel, operator.finish, operator.doing
+
+        def __init__(self) -> None:
+            self.reports: list[tuple[set[str], str]] = []
+
+        def report(self, kind: set[str], message: str) -> None:
+            self.reports.append((kind, message))
+
+    return StandIn()

@@ -28,6 +28,7 @@ from scene_helpers import (
     fcurves_of,
     fk_world,
     generate,
+    modal_stand_in,
     panel_screenshot,
     snapshot,
     world_heads,
@@ -293,29 +294,13 @@ def test_bad_inputs_are_reported_not_raised(scene, addon, tmp_path, settings, me
     assert snapshot(scene) == before
 
 
-def _modal_stand_in(addon):
-    """Generate Dance's modal methods on a plain object: bpy as a module has no event loop to run them."""
-    op = addon.operators.DANCENET_OT_generate
-
-    class StandIn:
-        _begin, _show, _end, modal, cancel = op._begin, op._show, op._end, op.modal, op.cancel
-
-        def __init__(self) -> None:
-            self.reports: list[tuple[set[str], str]] = []
-
-        def report(self, kind: set[str], message: str) -> None:
-            self.reports.append((kind, message))
-
-    return StandIn()
-
-
 def test_background_generation_cancelled_with_esc_changes_nothing(scene, addon, song, monkeypatch):
     monkeypatch.setattr(
         addon.pipeline, "load_generator", lambda: make_fake_generator(step_delay=0.05, steps=400)
     )
     scene.dancenet.music_file = str(song)
     before = snapshot(scene)
-    op = _modal_stand_in(addon)
+    op = modal_stand_in(addon.operators.DANCENET_OT_generate)
     op._begin(bpy.context, addon.pipeline.prepare(scene))
     deadline = time.monotonic() + 10
     while op._job.progress()[1] == 0.0 and time.monotonic() < deadline:
@@ -336,7 +321,7 @@ def test_background_generation_cancelled_with_esc_changes_nothing(scene, addon, 
 
 def test_background_generation_runs_to_the_end(scene, addon, song):
     scene.dancenet.music_file = str(song)
-    op = _modal_stand_in(addon)
+    op = modal_stand_in(addon.operators.DANCENET_OT_generate)
     op._begin(bpy.context, addon.pipeline.prepare(scene))
     op._job.join(30)
     assert op.modal(bpy.context, SimpleNamespace(type="TIMER")) == {"FINISHED"}

@@ -1,19 +1,24 @@
 """Issue 25 item 5: the motion-library engine from the add-on: the panel's Engine and Library settings, a take
 danced from a library (one the test writes, and the shipped CMU one), Continue From Here and bad folders answered
-in one line, the Style menu's styles from the library, batch mode with --engine library."""
+in one line, the Style menu's styles from the library, batch mode with --engine library; and Build Library, which
+builds a folder in Blender (no torch)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from doubles import write_song
-from scene_helpers import bpy, generate, panel_screenshot, snapshot, world_heads
+from scene_helpers import bpy, fcurves_of, generate, modal_stand_in, panel_screenshot, snapshot, world_heads
 
-from dancenet_core.bvh import write_bvh
+from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.engines import ENGINES
+from dancenet_core.errors import GenerationCancelled
 from dancenet_core.generate import generate_dance
+from dancenet_core.library.build import build_library
+from dancenet_core.library.store import library_path
 from dancenet_core.motion import Motion
 from dancenet_core.request import options
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX
@@ -36,8 +41,6 @@ def _clip(seconds: float, bpm: float, phase: float) -> Motion:
 @pytest.fixture(scope="module")
 def library_folder(tmp_path_factory) -> Path:
     """A built library of three 12-s clips in two styles (folders)."""
-    from dancenet_core.library.build import build_library
-
     folder = tmp_path_factory.mktemp("library")
     for name, bpm, phase in (("swing/a", 110, 0.0), ("swing/b", 120, 1.0), ("salsa/c", 100, 2.0)):
         (folder / name).parent.mkdir(exist_ok=True)
@@ -178,3 +181,120 @@ def test_batch_mode_dances_from_the_shipped_library(addon, tmp_path, capfd):
     bvh = (tmp_path / "out" / "batch_song" / "batch_song.bvh").read_text()  # the take that plays, exported
     frames = int(next(line for line in bvh.splitlines() if line.startswith("Frames:")).split(":")[1])
     assert abs(frames - SONG_S * 25) <= 2, frames  # at the engine's own 25 fps
+
+
+@pytest.fixture
+def own_cache(monkeypatch, tmp_path) -> Path:
+    """A cache of this test's own: a folder built by another test (or run) must not read as built here."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def _two_clips(folder: Path) -> Path:
+    """Two made-up 12-s clips in two styles (folders), and a 0.5-s one the build leaves out."""
+    for name, bpm, phase, seconds in (("swing/one", 115, 0.5, 12.0), ("salsa/two", 105, 1.5, 12.0),
+                                      ("salsa/blip", 105, 0.0, 0.5)):  # fmt: skip
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        write_bvh(folder / f"{name}.bvh", _clip(seconds, bpm, phase))
+    return folder
+
+
+def _library_row(scene, folder: Path | str) -> list[tuple[str, str]]:
+    """The Dance panel's Build Library button and what it says beside it, as (text, icon) pairs."""
+    scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
+    shot = panel_screenshot()
+    widgets = shot.walk(shot.record_panel(bpy.context))
+    k = next((i for i, w in enumerate(widgets) if w.text == "Build Library"), None)
+    return [] if k is None else [(w.text, w.icon) for w in widgets[k : k + 2]]
+
+
+def test_build_library_then_a_dance_from_it(scene, addon, real, own_cache, tmp_path):
+    folder = _two_clips(tmp_path / "my clips")
+    assert _library_row(scene, folder) == [("Build Library", "FILE_REFRESH"), ("Not built yet", "INFO")]
+    assert [item[0] for item in addon.properties._styles(scene.dancenet, bpy.context)] == ["auto"]
+    before = snapshot(scene)
+    assert bpy.ops.dancenet.build_library() == {"FINISHED"}
+    assert snapshot(scene) == before  # building touches nothing in the file
+    assert library_path(folder).is_file()
+    assert _library_row(scene, folder)[1] == ("Built", "CHECKMARK")
+    assert [item[0] for item in addon.properties._styles(scene.dancenet, bpy.context)] == ["auto", "salsa", "swing"]
+    assert generate(scene, real, engine="library", library=str(folder), style="swing") == {"FINISHED"}
+    rig = bpy.data.objects["DanceNet Dancer"]
+    (take,) = _takes(addon, rig)
+    assert addon.takes.take_info(take)["style"] == "swing"
+    keys = {len(c.keyframe_points) for c in fcurves_of(take)}
+    assert min(keys) >= SONG_S * scene.render.fps - 2  # every channel keyed over the song
+    motion = addon.takes.take_motion(take)
+    assert np.ptp(motion.rotations[:, JOINT_INDEX["left_hip"]], axis=0).max() > 0.3  # the clips' swing, danced
+
+
+def test_build_library_in_the_background_reports_one_line(scene, addon, own_cache, tmp_path):
+    folder = _two_clips(tmp_path / "clips")
+    scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
+    op = modal_stand_in(addon.operators.DANCENET_OT_build_library)
+    op._begin(bpy.context, folder)
+    runtime = bpy.context.window_manager.dancenet
+    assert runtime.running and not bpy.ops.dancenet.generate.poll()  # one job at a time
+    op._job.join(120)
+    assert op.modal(bpy.context, SimpleNamespace(type="TIMER")) == {"FINISHED"}
+    assert not runtime.running
+    assert op.reports == [({"INFO"}, "Built library: 2 clips, 0.4 min, styles salsa, swing; left out 1 file: "
+                                     "blip.bvh: 0.48 s, too short to hold a bar")]
+
+
+def test_build_library_cancelled_with_esc_writes_nothing(scene, addon, own_cache, tmp_path):
+    from blender_addon import warming
+
+    folder = _two_clips(tmp_path / "clips")
+    op = modal_stand_in(addon.operators.DANCENET_OT_build_library)
+    with warming.LOCK:  # the worker waits for the lock, so Esc comes before its first clip
+        op._begin(bpy.context, folder)
+        assert op.modal(bpy.context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    op._job.join(60)
+    assert isinstance(op._job.error, GenerationCancelled)
+    assert op.reports == [({"WARNING"}, "DanceNet: cancelled; nothing was changed")]
+    assert not library_path(folder).is_file() and not bpy.context.window_manager.dancenet.running
+
+
+def _not_a_dancer(folder: Path) -> None:
+    """A BVH of three joints in a row, and a file that is no BVH at all."""
+    write_bvh_data(folder / "snake.bvh", BvhData(("a", "b", "c"), (-1, 0, 1), np.eye(3), (
+        ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
+        ("Zrotation", "Xrotation", "Yrotation"), ("Zrotation", "Xrotation", "Yrotation")), (), 0.04,
+        np.zeros((50, 12))))  # fmt: skip
+    (folder / "notes.bvh").write_text("these are my notes, not motion\n")
+
+
+@pytest.mark.parametrize(("folder", "message"), [
+    ("missing", "motion library folder not found: "),
+    ("empty", "no BVH clips in "),
+    ("unreadable", "none of the 2 BVH clips in "),
+])  # fmt: skip
+def test_a_bad_folder_to_build_is_one_line_and_the_users_actions_kept(scene, addon, own_cache, tmp_path, folder,
+                                                                       message):
+    path = tmp_path / folder
+    if folder != "missing":
+        path.mkdir()
+    if folder == "unreadable":
+        _not_a_dancer(path)
+    rig = addon.rig.create_rig(bpy.context, with_mesh=False)
+    rig.animation_data_create().action = bpy.data.actions.new("user's own")
+    scene.dancenet.target, scene.dancenet.armature = "EXISTING", rig
+    state = {"missing": ("Folder not found", "ERROR"), "empty": ("No BVH clips in it", "ERROR"),
+             "unreadable": ("Not built yet", "INFO")}[folder]
+    assert _library_row(scene, path)[1] == state
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError) as report:
+        bpy.ops.dancenet.build_library()
+    text = str(report.value).strip()
+    assert text.startswith("Error: ") and message in text, text
+    assert len(text.splitlines()) == 1 and "Traceback" not in text
+    assert snapshot(scene) == before
+    assert rig.animation_data.action.name == "user's own" and not bpy.data.actions["user's own"].use_fake_user
+
+
+def test_no_build_button_for_the_shipped_library(scene, addon):
+    assert _library_row(scene, "") == []
+    scene.dancenet.library = ""
+    with pytest.raises(RuntimeError, match="Choose the Library folder of BVH clips to build"):
+        bpy.ops.dancenet.build_library()
