@@ -39,23 +39,13 @@ def training_library(pairs: list[PairedSequence], data_dir: Path, skeleton: Skel
     return MotionLibrary.from_clips(clips)
 
 
-def capture_steps(library: MotionLibrary) -> np.ndarray:
-    """Every body joint's frame-to-frame motion [frames, joints] (m) over the library's clips."""
-    steps = []
-    for c in range(library.num_clips):
-        pos = library.clip(c).positions()[:, :BODY_JOINTS]
-        steps.append(np.linalg.norm(np.diff(pos, axis=0), axis=-1))
-    return np.concatenate(steps)
-
-
 def library_row(train: list[PairedSequence], test: list[PairedSequence], data_dir: Path, skeleton: Skeleton,
                 fps: float, takes: int) -> tuple[list, list[str], list[np.ndarray], dict]:
     """Dances (take k with seed k) to every test sequence's song span, their styles and beats (dance time), and the
     engine's own figures: per dance and over all."""
     library = training_library(train, data_dir, skeleton, fps)
-    own = capture_steps(library)
-    p99 = np.percentile(own, 99, axis=0)
-    own = (own / p99).max(axis=1)
+    p99 = library.step_p99
+    own = (np.delete(library.joint_steps, library.clip_starts[:-1], axis=0) / p99).max(axis=1)
     seqs = {s.seq: s for s in read_manifest(data_dir)}
     blend = int(round(CUT_BLEND_S * fps)) + 1
     dances, styles, beats, per_dance, blended = [], [], [], [], []
@@ -67,8 +57,8 @@ def library_row(train: list[PairedSequence], test: list[PairedSequence], data_di
             pos = d.motion.positions()[:, :BODY_JOINTS]
             step = (np.linalg.norm(np.diff(pos, axis=0), axis=-1) / p99).max(axis=1)
             near = np.zeros(len(step), bool)
-            for c in d.report.cuts:
-                near[max(c - 1, 0) : c + blend] = True
+            for c, m in zip(d.report.cuts, d.report.blends, strict=True):
+                near[max(c - 1, 0) : c + max(m, blend)] = True
             blended.append(step[near])
             ratio = float(step[near].max()) if near.any() else 0.0
             dances.append(d.motion)

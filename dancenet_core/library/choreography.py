@@ -7,7 +7,10 @@
    beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of the mean
    onset strength), the time-warp (beyond +-15% per beat only when nothing fits, at a steep cost) and seeded noise
    (different seeds, different dances); each join's: the distance between the pose, velocity and foot contact
-   where one figure ends and the next starts (0 where the next figure is the clip's own continuation). The whole
+   where one figure ends and the next starts (0 where the next figure is the clip's own continuation), and, at a
+   cut, a steep cost where some joint of the new figure, as fast as the warp plays it, steps further in the
+   frames the cut blends than `CALM_LIMIT` of that joint's 99th percentile in the library (cuts are made where
+   the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`). The whole
    table is [bars, figures] and each step a vectorised min over [figures, figures]: a 3-minute song on a
    30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
 3. The dance (`transitions.render`): every figure's frames sampled at the warped times, the root path carried
@@ -26,9 +29,15 @@ from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from .analysis import POSE_DIM, frame_features
 from .store import MotionLibrary
-from .transitions import Figure, render
+from .transitions import CUT_BLEND_S, Figure, render
 
 WARP_RANGE = 0.15  # a figure may be slowed or hurried by this much per beat
+# A cut's new figure: its joints' steps over the frames the cut blends (and the one before) at most this share of
+# each joint's 99th percentile in the library, as the warp plays them; the rest is left to the fading offset. In a
+# library whose dancers are never that calm, the calmest quarter of its figures' openings sets the limit instead,
+# so that the plan still cuts (and seeds still differ).
+CALM_LIMIT = 0.9
+CALM_SHARE = 0.25
 LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
 DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
@@ -46,6 +55,7 @@ class Settings:
     velocity: float = 0.15
     contact: float = 0.3
     cut: float = 0.2  # every cut costs this much more than carrying on with the clip
+    calm: float = 50.0  # per unit of a cut's step over the limit (as steep as a warp out of range)
 
 
 DEFAULT_SETTINGS = Settings()
@@ -66,6 +76,7 @@ class Report:
 
     figures: list[dict] = field(default_factory=list)
     cuts: list[int] = field(default_factory=list)  # frames where a new clip (or a jump within one) starts
+    blends: list[int] = field(default_factory=list)  # frames over which each cut's difference fades
     long_run_share: float = 0.0  # share of frames from runs of one clip longer than LONG_RUN_BARS bars
     longest_run_bars: int = 0
     longest_run_s: float = 0.0
@@ -141,6 +152,17 @@ def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.n
     return np.flatnonzero(starts)
 
 
+def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
+    """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
+    the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
+    ratio = (library.joint_steps / library.step_p99).max(axis=1)
+    first = np.floor(library.beats[starts]).astype(np.int64)
+    clip = library.beat_clip[starts]
+    lo = np.maximum(first - 1, library.clip_starts[clip])
+    hi = np.minimum(first + int(round(CUT_BLEND_S * library.fps)) + 1, library.clip_starts[clip + 1] - 1)
+    return np.array([ratio[a : b + 1].max() for a, b in zip(lo, hi, strict=True)])
+
+
 def _ranks(x: np.ndarray) -> np.ndarray:
     """Each value's rank as a fraction in [0, 1] (ties share their mean rank: all equal, all 0.5)."""
     if len(x) < 2:
@@ -182,6 +204,9 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     music_rank = _ranks(music)
 
     transition_cache: dict[int, np.ndarray] = {}
+    continuations: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # (from, to) pairs where a clip carries on
+    entry = entry_steps(library, starts)
+    limit = max(CALM_LIMIT, float(np.quantile(entry, CALM_SHARE)))
     scale = None
 
     def transitions(n_prev: int) -> np.ndarray:
@@ -194,9 +219,21 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
             if scale is None:
                 scale = float(np.median(d)) or 1.0
             d = d / scale + settings.cut
-            d[ends[:, None] == starts[None, :]] = 0.0  # the clip's own continuation
-            transition_cache[n_prev] = d
+            carries = ends[:, None] == starts[None, :]
+            d[carries] = 0.0  # the clip's own continuation
+            transition_cache[n_prev], continuations[n_prev] = d, np.nonzero(carries)
         return transition_cache[n_prev]
+
+    def speed(b: int) -> np.ndarray:
+        """[F]: how much faster than in its clip each figure plays the first beat of bar b."""
+        a, _ = grid.bars[b]
+        with np.errstate(divide="ignore"):
+            return lib_ibi[starts] / (grid.beats[a + 1] - grid.beats[a])
+
+    def calm(b: int) -> np.ndarray:
+        """[F]: the cost of entering bar b's figure at each start by a cut, for its steps at the cut."""
+        over = np.maximum(np.nan_to_num(entry * speed(b), posinf=0.0) - limit, 0.0)
+        return settings.calm * over
 
     def unary(b: int) -> np.ndarray:
         a, n = grid.bars[b]
@@ -214,10 +251,13 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     if previous is not None:
         transitions(grid.bars[0][1])  # sets the scale of a join's cost
         p = previous.astype(np.float32) * np.sqrt(weights)
-        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut
+        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut + calm(0)
     back = np.zeros((len(grid.bars), len(starts)), np.int32)
     for b in range(1, len(grid.bars)):
-        total = cost[:, None] + transitions(grid.bars[b - 1][1])
+        entering = calm(b)
+        total = cost[:, None] + transitions(grid.bars[b - 1][1]) + entering[None, :]
+        came, went = continuations[grid.bars[b - 1][1]]
+        total[came, went] -= entering[went]  # carrying on within a clip is no cut
         back[b] = np.argmin(total, axis=0)
         u = unary(b)
         cost = u + total[back[b], np.arange(len(starts))]
@@ -242,13 +282,13 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     for _ in range(takes):
         bars = plan(library, grid, onset, rng, style, settings, previous)
         figures = [Figure(s, n, grid.beats[a : a + n + 1]) for (s, n), (a, _) in zip(bars, grid.bars, strict=True)]
-        motion, cuts = render(library, figures, start_s, end, kept)
-        dances.append(LibraryDance(motion, report(library, figures, cuts, grid, start_s, end)))
+        motion, cuts, blends = render(library, figures, start_s, end, kept)
+        dances.append(LibraryDance(motion, report(library, figures, cuts, blends, grid, start_s, end)))
     return dances
 
 
-def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], grid: Grid, start_s: float,
-           end_s: float) -> Report:
+def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], blends: list[int], grid: Grid,
+           start_s: float, end_s: float) -> Report:
     """The figures (clip, where in it, where in the song), the runs of one clip and the largest time-warp."""
     rows, runs, warp = [], [], 0.0
     for k, f in enumerate(figures):
@@ -267,5 +307,5 @@ def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], grid:
             runs.append((1, song[-1] - song[0]))
     total = max(end_s - start_s, 1e-9)
     longest = max(runs, key=lambda r: r[1])
-    return Report(rows, cuts, float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total), int(longest[0]),
-                  float(longest[1]), warp)
+    return Report(rows, cuts, blends, float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total),
+                  int(longest[0]), float(longest[1]), warp)

@@ -9,6 +9,7 @@ import hashlib
 import json
 import zipfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR, cache_root
 from ..errors import DanceNetError
 from ..motion import Motion
-from ..skeleton import Skeleton
+from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis
 
 LIBRARY_VERSION = "motion-library-1"  # change whenever what a build computes changes
@@ -65,6 +66,23 @@ class MotionLibrary:
     def clip(self, c: int) -> Motion:
         a, b = self.clip_starts[c], self.clip_starts[c + 1]
         return Motion(self.rotations[a:b], self.root_positions[a:b], self.fps, self.skeleton)
+
+    @cached_property
+    def joint_steps(self) -> np.ndarray:
+        """[N, body joints]: how far (m) each body joint moved since the frame before, 0 at a clip's first frame:
+        how fast the library's own dancers move, which its cuts are held to (choreography, evaluation)."""
+        steps = []
+        for c in range(self.num_clips):
+            pos = self.clip(c).positions()[:, :BODY_JOINTS]
+            steps += [np.zeros((1, BODY_JOINTS)), np.linalg.norm(np.diff(pos, axis=0), axis=-1)]
+        return np.concatenate(steps)
+
+    @cached_property
+    def step_p99(self) -> np.ndarray:
+        """[body joints]: each joint's 99th percentile of its steps (frames with one before them)."""
+        moved = np.ones(len(self.rotations), bool)
+        moved[self.clip_starts[:-1]] = False
+        return np.percentile(self.joint_steps[moved], 99, axis=0)
 
     @classmethod
     def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()

@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from ..continuation import _fade
 from ..motion import Motion
 from ..representation import foot_contacts
-from ..skeleton import TOE_ENDS
+from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
 
 # How long a cut's offset takes to fade: longer than continuing a dance's 0.4 s (`continuation.BLEND_S`), because
@@ -29,6 +29,9 @@ from .store import MotionLibrary
 # (`dancenet evaluate --library-only --takes 2`). 0.6 s (5.3%) lets a large velocity difference carry the offset
 # further: the made clips' hands then stepped 1.21x their 99th percentile at a cut (1.16x at 0.5 s).
 CUT_BLEND_S = 0.5
+# A cut whose fading offset would move some joint further in a frame than the library's dancers do (its 99th
+# percentile step) fades longer, up to this: a slower fade moves the joints less per frame (issue 25).
+MAX_BLEND_S = 1.2
 # A foot is held while it stands: near the floor and slower than this in its source clip. The capture's own contacts
 # (`representation.CONTACT_SPEED_MPS`, 0.35 m/s) at the largest time-warp (about 30% faster) are 0.45 m/s.
 HOLD_SPEED_MPS = 0.5
@@ -81,8 +84,9 @@ def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) ->
 
 
 def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s: float,
-           kept: Motion | None = None) -> tuple[Motion, list[int]]:
-    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, and the frames of its cuts.
+           kept: Motion | None = None) -> tuple[Motion, list[int], list[int]]:
+    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, the frames of its cuts and
+    how many frames each cut's blend took.
     With `kept` (a dance at the library's frame rate that ends where this one starts) the first run goes on from
     its last pose as a run goes on after a cut: placed where the kept root would have gone on to, facing its way,
     and the difference from its last two frames faded out."""
@@ -108,6 +112,7 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     turn, shift = -float(_yaw(rot[:1, 0])[0]), np.zeros(2)
     placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
+    blends: list[int] = []  # frames each cut's offset takes to fade
     bounds = [0, *cuts, n]
     for r, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         if r == 0 and kept is None:
@@ -124,16 +129,17 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
         placed_rot[a:b], placed_root[a:b] = _place(rot[a:b], root[a:b], turn, shift)
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
         contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
-        if r > 0 and a >= 2:
-            _inertialise(library, placed_rot, placed_root, placed_rot[a - 2 : a].copy(),
-                         placed_root[a - 2 : a].copy(), pos, clip, a, b, turn, shift)
-        elif r == 0 and kept is not None:
+        if r > 0:  # the two frames before the cut (one twice when the dance's first figure is a frame long)
+            before = [max(a - 2, 0), a - 1]
+            blends.append(_inertialise(library, placed_rot, placed_root, placed_rot[before], placed_root[before],
+                                       pos, clip, a, b, turn, shift))
+        elif kept is not None:
             _inertialise(library, placed_rot, placed_root, kept.rotations[-2:], kept.root_positions[-2:], pos, clip,
                          a, b, turn, shift)
     stance = contact[1:] & contact[:-1]
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
-    return Motion(placed_rot, hold_stance(motion, stance), fps, library.skeleton), cuts
+    return Motion(placed_rot, hold_stance(motion, stance), fps, library.skeleton), cuts, blends
 
 
 def hold_stance(motion: Motion, stance: np.ndarray) -> np.ndarray:
@@ -168,16 +174,32 @@ def _follow(next_rot: np.ndarray, next_root: np.ndarray, rot: np.ndarray, root: 
 
 def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_rot: np.ndarray,
                  old_root: np.ndarray, pos: np.ndarray, clip: np.ndarray, a: int, b: int, turn: float,
-                 shift: np.ndarray) -> None:
+                 shift: np.ndarray) -> int:
     """Fade the new run's (from frame `a`) difference from the old one's last two frames (`old_rot` [2, J, 3],
-    `old_root` [2, 3]) out over its first frames (in place)."""
+    `old_root` [2, 3]) out over its first frames (in place): over `CUT_BLEND_S`, or longer (up to `MAX_BLEND_S`)
+    until no body joint steps further in a frame than its 99th percentile in the library, where a longer fade
+    gets there (else the fade whose largest step is least). Returns the frames it took."""
     step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
     lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
     lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
     nj = rot.shape[1]
     rot_diff = (Rotation.from_rotvec(old_rot.reshape(-1, 3))
                 * Rotation.from_rotvec(lead_rot.reshape(-1, 3)).inv()).as_rotvec().reshape(2, nj, 3)
-    m = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
-    offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
-    rot[a : a + m] = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
-    root[a : a + m] += _fade(m, old_root - lead_root)
+    shortest = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
+    longest = min(b - a, max(shortest, int(round(MAX_BLEND_S * library.fps))))
+    before = Motion(old_rot[-1:], old_root[-1:], library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
+    best = None
+    for m in range(shortest, longest + 1, 2):
+        offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
+        blended = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
+        moved = root[a : a + m] + _fade(m, old_root - lead_root)
+        after = Motion(blended, moved, library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
+        worst = float((np.linalg.norm(np.diff(np.concatenate([before, after]), axis=0), axis=-1)
+                       / library.step_p99).max())
+        if best is None or worst < best[0]:
+            best = (worst, m, blended, moved)
+        if worst <= 1.0:
+            break
+    _, m, blended, moved = best
+    rot[a : a + m], root[a : a + m] = blended, moved
+    return m
