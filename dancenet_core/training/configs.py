@@ -73,6 +73,9 @@ class TrainSettings:
     input_dropout: float | None = _option(
         0.1, "share of input channels zeroed in training (the authors: 0.4; it hides the previous frame's root "
              "velocity so often that the model learns to shuffle: see the model card)")
+    motion_prior: bool = _option(
+        False, "train a motion prior: the training songs' dances and the CMU dance clips without music, in one "
+               "style (training/prior.py); fine-tune it on the paired dances with --init")
     init: Path | None = _option(None, "warm start from a trained DanceNet bundle")
     validation: bool = _option(False, "leave the split's validation songs out of training (to choose settings on them)")
 

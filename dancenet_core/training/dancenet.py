@@ -33,6 +33,7 @@ from ..nets.export import bundle_to_runtime
 from ..nets.variants import build_model, music_features
 from ..representation import FeatureLayout, Normalizer
 from .configs import TrainSettings
+from .prior import PRIOR_STYLE, prior_sequences, silent
 from .tensor_windows import TensorWindows
 
 MIN_STYLE_SEQUENCES = 2  # a style danced in fewer training sequences cannot be learned or held out
@@ -234,6 +235,10 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     styles, left_out = shipped_styles(pairs, train_ids)
     train_pairs = [p for p in pairs if p.seq in train_ids and p.style in styles]
     test_pairs = [p for p in pairs if p.seq in test_ids and p.style in styles]
+    eval_pairs = [p for p in pairs if p.seq in held_out and p.style in styles] if held_out else test_pairs
+    if args.motion_prior:  # motion without music, in one style; held-out windows silent too
+        train_pairs, eval_pairs, styles = prior_sequences(train_pairs, args.data or default_data_dir()), \
+            silent(eval_pairs), [PRIOR_STYLE]
     layout = FeatureLayout(55, 5)
     init = DanceNetBundle.load(args.init) if args.init else None
     # A warm start keeps its normaliser: its weights were learnt on that scale.
@@ -260,13 +265,13 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
     # test songs (a figure for the card only).
     eval_name = "val" if held_out else "test"
-    eval_pairs = [p for p in pairs if p.seq in held_out and p.style in styles] if held_out else test_pairs
     test_windows = held_out_windows(eval_pairs, norm, styles, layout, args.window, args.seed)
     start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
     info = {
         "variant": args.variant,
         "data": "Dance with Melody (Tang et al. 2018, both folders), training split of weights/song_split.json"
-                + (" less its validation songs" if held_out else ""),
+                + (" less its validation songs" if held_out else "")
+                + (", and the CMU dance clips; all without music (a motion prior)" if args.motion_prior else ""),
         "validation_sequences": sorted(held_out),
         "init": str(args.init) if args.init else None,
         "minutes_per_style": {s: round(sum(len(p.motion) for p in train_pairs if p.style == s) / 1500, 2)
