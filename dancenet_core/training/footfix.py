@@ -40,6 +40,7 @@ from ..data.build import build_dataset
 from ..data.split import load_split
 from ..engines.dancenet import sample_dance
 from ..environment import default_data_dir
+from ..errors import DanceNetError
 from ..evaluation.metrics import CONTACT_TOE_M
 from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 from ..nets.export import fixer_to_runtime
@@ -172,7 +173,7 @@ def train_foot_model(
     test_in = simulate_sliding(test_clean, ch, test_rng)
     t0 = time.time()
     model.train()
-    for _ in range(steps):
+    for step in range(steps):
         clean = _windows(train, batch, window, rng)
         noisy = torch.tensor(simulate_sliding(clean, ch, rng))
         pred = noisy[..., ch.lower] + lower_increment(model, noisy, ch)
@@ -180,6 +181,9 @@ def train_foot_model(
         if contact is not None:
             gen = torch.tensor(_windows(contact.dances, batch, window, rng))
             loss = loss + contact.loss(gen[..., ch.lower], lower_increment(model, gen, ch))
+        if not torch.isfinite(loss):  # a foot model of NaN weights once shipped silently would ruin every dance
+            raise DanceNetError(f"the foot model's training diverged at step {step + 1} (its loss is not finite); "
+                                "nothing was written: lower --slide-weight or check the DanceNet weights it cleans")
         opt.zero_grad()
         loss.backward()
         opt.step()

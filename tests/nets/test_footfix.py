@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
+from dancenet_core.errors import DanceNetError
 from dancenet_core.evaluation.metrics import foot_sliding, jitter, longest_freeze_s
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import BEAT_COL, DOWNBEAT_COL, ONSET_COL
@@ -72,6 +74,24 @@ def test_training_on_simulated_sliding_beats_doing_nothing() -> None:
     for model in (FootConstraintModel(n_in, n_out, 32), LstmBaseline(n_in, n_out, 32)):
         res = train_foot_model(model, train, test, ch, steps=60, window=100, batch=8)
         assert res["test_mse"] < res["test_mse_without_model"]
+
+
+def test_a_diverging_training_stops_in_one_line_and_writes_nothing() -> None:
+    """Dances the contact loss cannot read (here a channel not finite) make the loss NaN: the training says so
+    instead of returning a foot model of NaN weights (which once decoded every dance to zero-norm rotations)."""
+    train = [encode(m) for m in _swaying(4, 4)]
+    norm = Normalizer.fit(train, binary=LAYOUT.contacts)
+    ch = FootChannels.for_layout(LAYOUT)
+    bad = [norm.normalize(x) for x in train]
+    for x in bad:
+        x[:, ch.lower[0]] = np.nan
+    model = FootConstraintModel(len(ch.inputs), len(ch.corrected), 32)
+    before = [p.detach().clone() for p in model.parameters()]
+    contact = ContactTraining(bad, ToeKinematics(DEFAULT_SKELETON, norm, ch))
+    with pytest.raises(DanceNetError, match="diverged at step 1 .*nothing was written"):
+        train_foot_model(model, [norm.normalize(x) for x in train], [norm.normalize(train[0])], ch, steps=5,
+                         window=100, batch=8, contact=contact)
+    assert all(torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
 
 
 def test_shipped_fixer_loads_and_keeps_upper_body_and_path() -> None:
