@@ -14,6 +14,7 @@ from dancenet_core.engines.dancenet import load_bundle
 from dancenet_core.music import madmom_dbn, madmom_nets
 from dancenet_core.music.features import N_FEATURES, _tracker
 from dancenet_core.runtime import sampler
+from dancenet_core.runtime.numpy_nets import NumpyDanceNet
 from dancenet_core.runtime.sampler import CachedSampler, Sampling, music_conditioning
 
 REPO = Path(__file__).resolve().parents[1]
@@ -83,6 +84,30 @@ def test_sampler_twin(temperature: float, monkeypatch: pytest.MonkeyPatch) -> No
     twin_frames, twin_outputs = run()
     np.testing.assert_array_equal(twin_frames, frames)
     np.testing.assert_array_equal(twin_outputs, outputs)
+
+
+def test_a_runaway_sigma_is_held_at_the_draw_limit_by_kernel_and_twin(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A model whose sigma head runs away (here every log-sigma pushed up by 40) draws values held within
+    DRAW_LIMIT standard deviations, finite, the same in the compiled sampler and its twin."""
+    bundle = load_bundle()
+    model = bundle.model
+    k, cont = model.cfg.mixtures, model.cfg.continuous_dim
+    state = dict(model.state)
+    bias = np.array(state["decoder.3.bias"], copy=True)
+    bias[k + k * cont : k + 2 * k * cont] += 40.0
+    state["decoder.3.bias"] = bias
+    wild = NumpyDanceNet(model.cfg, state)
+    cond = music_conditioning(wild, np.random.default_rng(1).standard_normal((30, N_FEATURES), np.float32), 1)
+    first = bundle.normalizer.normalize(bundle.start_frames[bundle.styles[0]][:1])
+
+    def run() -> np.ndarray:
+        return CachedSampler(wild).run(first, cond, Sampling(1.0, np.random.default_rng(5)))[0]
+
+    frames = run()
+    drawn = frames[:, 1:, :cont]
+    assert np.isfinite(frames).all() and np.abs(drawn).max() == sampler.DRAW_LIMIT
+    monkeypatch.setattr(jit, "pick", lambda kernel, twin: twin)
+    np.testing.assert_array_equal(run(), frames)
 
 
 def test_a_dance_from_twins_is_the_compiled_dance(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -32,6 +32,7 @@ from ..nets.dancenet import DanceNet
 from ..nets.export import bundle_to_runtime
 from ..nets.variants import build_model, music_features
 from ..representation import FeatureLayout, Normalizer
+from ..runtime.sampler import DRAW_LIMIT
 from .configs import TrainSettings
 from .prior import PRIOR_STYLE, prior_sequences, silent
 from .tensor_windows import TensorWindows
@@ -83,7 +84,6 @@ def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
     model.load_state_dict(dst)
 
 
-OWN_LIMIT = 16.0  # normalised units; the capture reaches 15 (99.99% of its values within 8.6)
 
 
 def own_mask(shape: tuple[int, int], share: float, stretch: int, device: torch.device) -> torch.Tensor:
@@ -123,8 +123,8 @@ def with_own_predictions(model: torch.nn.Module, frames: torch.Tensor, music: to
         own = torch.cat([mean + temperature * sigma * torch.randn_like(mean), (contacts > 0).to(mean.dtype)], -1)
         own[..., :d] *= model.modelled.to(own.dtype)  # constant channels stay at their (zero) value
         # A pass fed a half-converged rollout can draw far outside the data (NaN within 200 steps on a GPU run
-        # with 4 passes at temperature 1): clip to OWN_LIMIT standard deviations, wider than the capture's range.
-        own = own.nan_to_num(0.0).clamp(-OWN_LIMIT, OWN_LIMIT)
+        # with 4 passes at temperature 1): clip to DRAW_LIMIT standard deviations, wider than the capture's range.
+        own = own.nan_to_num(0.0).clamp(-DRAW_LIMIT, DRAW_LIMIT)
         mixed = frames.clone()
         mixed[:, 1:] = torch.where(mask, own, frames[:, 1:])
     model.train(was_training)
