@@ -63,6 +63,15 @@ class PairedSequence:
                                 fit=np.array([self.fit_mean_cm, self.fit_p95_cm]))
 
     @classmethod
+    def from_motion(cls, seq: str, style: str, motion: Motion, music: np.ndarray, err: np.ndarray) -> PairedSequence:
+        """A dance on the floor (y = 0) with its music at its frames, encoded as training reads it (and mirrored);
+        `err` [T, K]: its fit errors (m)."""
+        return cls(seq=seq, style=style, motion=encode(motion, floor=0.0),
+                   mirrored=encode(motion.mirrored(), floor=0.0), music=music,
+                   positions=motion.positions()[:, :BODY_JOINTS].astype(np.float32), offsets=motion.skeleton.offsets,
+                   fit_mean_cm=float(err.mean() * 100), fit_p95_cm=float(np.percentile(err, 95) * 100))
+
+    @classmethod
     def load(cls, path: Path) -> PairedSequence:
         z = np.load(path)
         return cls(str(z["seq"]), str(z["style"]), z["motion"], z["mirrored"], z["music"], z["positions"],
@@ -121,18 +130,7 @@ def build_sequence(seq: Recording, out_dir: Path) -> PairedSequence:
     analysis = analyze_music(seq.audio)
     times = seq.music_offset_s + np.arange(motion.num_frames) / MODEL_FPS
     music = music_at_frames(analysis.features, MUSIC_FPS, times)
-    paired = PairedSequence(
-        seq=seq.seq,
-        style=seq.style,
-        motion=encode(motion, floor=0.0),
-        mirrored=encode(motion.mirrored(), floor=0.0),
-        music=music,
-        positions=motion.positions()[:, :BODY_JOINTS].astype(np.float32),
-        offsets=motion.skeleton.offsets,
-        fit_mean_cm=float(err.mean() * 100),
-        fit_p95_cm=float(np.percentile(err, 95) * 100),
-    )
-    return paired
+    return PairedSequence.from_motion(seq.seq, seq.style, motion, music, err)
 
 
 def with_mel_music(pairs: list[PairedSequence], data_dir: Path) -> list[PairedSequence]:

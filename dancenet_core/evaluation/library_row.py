@@ -45,7 +45,7 @@ def library_row(train: list[PairedSequence], test: list[PairedSequence], data_di
     engine's own figures: per dance and over all."""
     library = training_library(train, data_dir, skeleton, fps)
     p99 = library.step_p99
-    own = (np.delete(library.joint_steps, library.clip_starts[:-1], axis=0) / p99).max(axis=1)
+    own = np.delete(library.step_ratios, library.clip_starts[:-1])
     seqs = {s.seq: s for s in read_manifest(data_dir)}
     blend = int(round(CUT_BLEND_S * fps)) + 1
     dances, styles, beats, per_dance, blended = [], [], [], [], []

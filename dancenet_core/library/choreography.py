@@ -155,7 +155,7 @@ def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.n
 def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
     """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
     the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
-    ratio = (library.joint_steps / library.step_p99).max(axis=1)
+    ratio = library.step_ratios
     first = np.floor(library.beats[starts]).astype(np.int64)
     clip = library.beat_clip[starts]
     lo = np.maximum(first - 1, library.clip_starts[clip])

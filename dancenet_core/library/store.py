@@ -84,6 +84,11 @@ class MotionLibrary:
         moved[self.clip_starts[:-1]] = False
         return np.percentile(self.joint_steps[moved], 99, axis=0)
 
+    @cached_property
+    def step_ratios(self) -> np.ndarray:
+        """[N]: each frame's largest body-joint step over that joint's 99th percentile (`step_p99`)."""
+        return (self.joint_steps / self.step_p99).max(axis=1)
+
     @classmethod
     def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()
                    ) -> MotionLibrary:

@@ -84,8 +84,6 @@ def warm_start(model: torch.nn.Module, source: torch.nn.Module) -> None:
     model.load_state_dict(dst)
 
 
-
-
 def own_mask(shape: tuple[int, int], share: float, stretch: int, device: torch.device) -> torch.Tensor:
     """Which frames [B, T] the model's own draws replace: a random `share` of single frames, or (stretch > 0)
     stretches of `stretch` own frames at a random phase per window, between real stretches, `share` of all."""

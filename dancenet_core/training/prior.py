@@ -16,8 +16,6 @@ import numpy as np
 
 from ..data.build import PairedSequence, dataset_cache_dir, fitted_clip
 from ..data.cmu_dance import read_cmu_manifest
-from ..representation import encode
-from ..skeleton import BODY_JOINTS
 
 PRIOR_STYLE = "any"
 
@@ -33,12 +31,8 @@ def cmu_motion(data_dir: Path, music_width: int) -> list[PairedSequence]:
     out = []
     for clip in read_cmu_manifest(data_dir):
         motion, err, _ = fitted_clip(clip, dataset_cache_dir())
-        out.append(PairedSequence(
-            seq=f"CMU_{clip.clip}", style=PRIOR_STYLE, motion=encode(motion, floor=0.0),
-            mirrored=encode(motion.mirrored(), floor=0.0),
-            music=np.zeros((motion.num_frames, music_width), np.float32),
-            positions=motion.positions()[:, :BODY_JOINTS].astype(np.float32), offsets=motion.skeleton.offsets,
-            fit_mean_cm=float(err.mean() * 100), fit_p95_cm=float(np.percentile(err, 95) * 100)))
+        music = np.zeros((motion.num_frames, music_width), np.float32)
+        out.append(PairedSequence.from_motion(f"CMU_{clip.clip}", PRIOR_STYLE, motion, music, err))
     return out
 
 
