@@ -32,6 +32,11 @@ CUT_BLEND_S = 0.5
 # A cut whose fading offset would move some joint further in a frame than the library's dancers do (its 99th
 # percentile step) fades longer, up to this: a slower fade moves the joints less per frame (issue 25).
 MAX_BLEND_S = 1.2
+# Shares of a cut's velocity difference its fade carries, tried in turn until no joint steps past its percentile:
+# carrying all of it, the fade must take back the ground the difference covers (about half the difference again,
+# 0.6 into the fade, whatever its length). Largest step at a cut 1.22x -> 1.07x the 99th percentile, frames over it
+# 0.3% -> 0.1% (`dancenet evaluate --library-only --takes 2`, with the hold limited as `hold_stance` says).
+VELOCITY_KEPT = (1.0, 0.5, 0.0)
 # A foot is held while it stands: near the floor and slower than this in its source clip. The capture's own contacts
 # (`representation.CONTACT_SPEED_MPS`, 0.35 m/s) at the largest time-warp (about 30% faster) are 0.45 m/s.
 HOLD_SPEED_MPS = 0.5
@@ -139,10 +144,10 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     stance = contact[1:] & contact[:-1]
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
-    return Motion(placed_rot, hold_stance(motion, stance), fps, library.skeleton), cuts, blends
+    return Motion(placed_rot, hold_stance(motion, stance, library.step_p99), fps, library.skeleton), cuts, blends
 
 
-def hold_stance(motion: Motion, stance: np.ndarray) -> np.ndarray:
+def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None) -> np.ndarray:
     """Root positions [T, 3] moved on the floor so that a foot standing from one frame to the next (`stance`
     [T - 1, 2]: the source clip's foot contact at both) stays where it is (two: their mean step), the body carried by
     the standing foot as a dancer's is; the contacts are the source's so that a blend's motion of a planted foot is
@@ -154,15 +159,34 @@ def hold_stance(motion: Motion, stance: np.ndarray) -> np.ndarray:
     the capture. On the evaluation (`dancenet evaluate --library-only --takes 2`) the foot slide went 0.613 -> 0.452
     (real 0.500) and the root extent 1.17x -> 1.11x real's; the correction unsmoothed shook the body (kinetic FID
     8.5 -> 13.3; smoothed 9.7).
-    """
+
+    With `step_limit` (each body joint's 99th percentile step, [BODY_JOINTS]) a frame's correction is scaled down
+    (by quarters) where it would move some joint further than that while the motion itself does not: the blend
+    moves a planted foot, and carrying the body after it pushed the hands past their percentile 5 frames into a
+    cut: of the evaluation's 412 cuts, 24 -> 2 over it, largest 1.39x -> 1.07x, foot slide 0.458 -> 0.460
+    (`dancenet evaluate --library-only --takes 2`)."""
     toes = motion.end_effectors()[:, list(TOE_ENDS)]
     step = np.diff(toes[:, :, [0, 2]], axis=0)
     count = stance.sum(1, keepdims=True)
     slip = (step * stance[..., None]).sum(1) / np.maximum(count, 1)
     root = motion.root_positions.copy()
     slip = gaussian_filter1d(slip, HOLD_SMOOTH_FRAMES, axis=0)
+    if step_limit is not None:
+        slip *= _within_limit(np.diff(motion.positions()[:, :BODY_JOINTS], axis=0), slip, step_limit)[:, None]
     root[1:, [0, 2]] -= np.cumsum(slip, axis=0)
     return root
+
+
+def _within_limit(steps: np.ndarray, slip: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Per frame, the largest share (0, 1/4, ..., 1) of the floor correction `slip` [T - 1, 2] that keeps every
+    joint's step (`steps` [T - 1, J, 3], less the correction) within `limit` [J]; where none does, the share whose
+    largest step is least."""
+    shares = np.linspace(0.0, 1.0, 5)
+    worst = np.stack([(np.linalg.norm(steps - s * np.stack([slip[:, 0], np.zeros(len(slip)), slip[:, 1]], -1)[:, None],
+                                      axis=-1) / limit).max(axis=1) for s in shares], axis=1)
+    ok = worst <= 1.0
+    largest = np.where(ok.any(axis=1), len(shares) - 1 - np.argmax(ok[:, ::-1], axis=1), np.argmin(worst, axis=1))
+    return shares[largest]
 
 
 def _follow(next_rot: np.ndarray, next_root: np.ndarray, rot: np.ndarray, root: np.ndarray) -> tuple[float, np.ndarray]:
@@ -170,6 +194,11 @@ def _follow(next_rot: np.ndarray, next_root: np.ndarray, rot: np.ndarray, root: 
     to (its next frame, placed: [1, J, 3], [1, 3]), facing the same way."""
     turn = float(_yaw(next_rot[:, 0])[0] - _yaw(rot[None, 0])[0])
     return turn, next_root[0, [0, 2]] - Rotation.from_euler("y", turn).apply(root)[[0, 2]]
+
+
+def _damped(history: np.ndarray, keep: float) -> np.ndarray:
+    """The last two frames of a difference [2, ...] with its change per frame scaled by `keep`."""
+    return np.stack([history[1] - keep * (history[1] - history[0]), history[1]])
 
 
 def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_rot: np.ndarray,
@@ -188,17 +217,21 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
     shortest = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
     longest = min(b - a, max(shortest, int(round(MAX_BLEND_S * library.fps))))
     before = Motion(old_rot[-1:], old_root[-1:], library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
+    root_diff = old_root - lead_root
     best = None
-    for m in range(shortest, longest + 1, 2):
-        offsets = Rotation.from_rotvec(_fade(m, rot_diff).reshape(-1, 3))
-        blended = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
-        moved = root[a : a + m] + _fade(m, old_root - lead_root)
-        after = Motion(blended, moved, library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
-        worst = float((np.linalg.norm(np.diff(np.concatenate([before, after]), axis=0), axis=-1)
-                       / library.step_p99).max())
-        if best is None or worst < best[0]:
-            best = (worst, m, blended, moved)
-        if worst <= 1.0:
+    for keep in VELOCITY_KEPT:
+        for m in range(shortest, longest + 1, 2):
+            offsets = Rotation.from_rotvec(_fade(m, _damped(rot_diff, keep)).reshape(-1, 3))
+            blended = (offsets * Rotation.from_rotvec(rot[a : a + m].reshape(-1, 3))).as_rotvec().reshape(m, nj, 3)
+            moved = root[a : a + m] + _fade(m, _damped(root_diff, keep))
+            after = Motion(blended, moved, library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
+            worst = float((np.linalg.norm(np.diff(np.concatenate([before, after]), axis=0), axis=-1)
+                           / library.step_p99).max())
+            if best is None or worst < best[0]:
+                best = (worst, m, blended, moved)
+            if worst <= 1.0:
+                break
+        if best[0] <= 1.0:
             break
     _, m, blended, moved = best
     rot[a : a + m], root[a : a + m] = blended, moved

@@ -252,6 +252,31 @@ def test_a_standing_foot_is_held() -> None:
     assert np.allclose(held.root_positions[:, 1], m.root_positions[:, 1])  # only moved on the floor
 
 
+def test_the_hold_moves_no_joint_past_its_limit() -> None:
+    """Carrying the body after a creeping foot adds the creep to every joint's step: with a limit per joint, the
+    hold gives up just enough of its correction at the frames where that would pass the limit."""
+    m = stander(10, 110, drift_mps=0.0)
+    t = np.arange(m.num_frames) / FPS
+    for hip in ("left_hip", "right_hip"):  # both legs swing the standing feet to and fro
+        m.rotations[:, JOINT_INDEX[hip], 0] = 0.3 * np.sin(2 * np.pi * t)
+    stance = np.ones((m.num_frames - 1, 2), bool)
+    own = np.linalg.norm(np.diff(m.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+    limit = np.maximum(own.max(axis=0), 0.02)  # the motion itself stays within it
+    held = Motion(m.rotations, hold_stance(m, stance), m.fps, m.skeleton)
+    free = np.linalg.norm(np.diff(held.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+    assert (free / limit).max() > 1.2  # unlimited, the hold passes it (the test can fail)
+    limited = Motion(m.rotations, hold_stance(m, stance, limit), m.fps, m.skeleton)
+    steps = np.linalg.norm(np.diff(limited.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+    assert (steps / limit).max() <= 1.0 + 1e-9
+    # and it still holds the feet as far as the limit lets it: a quarter of their travel taken away
+    assert toe_travel(limited) < 0.8 * toe_travel(m)
+
+
+def toe_travel(motion: Motion) -> float:
+    toes = motion.end_effectors()[:, list(TOE_ENDS)]
+    return float(np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1).sum())
+
+
 def test_standing_feet_stay_put_across_cuts() -> None:
     """A dance cut from clips whose standing feet creep and whose legs lean differently (a blend moves the feet):
     the feet stay put, through the blends too."""
