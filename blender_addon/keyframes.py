@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dancenet_core.errors import DanceNetError
+from dancenet_core.jointmap import bone_directions, character_frame, min_rotation
 from dancenet_core.kinematics import fk_numpy
 
 from . import rigcontrols, rigdef
@@ -109,15 +110,6 @@ def _reach(
     return turn_upper, turn_lower
 
 
-def _mapped_chain_child(skeleton: Skeleton, j: int, mapped: dict[int, str]) -> int | None:
-    """The mapped joint bone j points at: its direction child, or, when the rig has no bone for that one (a spine
-    of fewer bones), the first mapped joint further along the same chain."""
-    child = rigdef.direction_child(skeleton, j)
-    while child is not None and child not in mapped:
-        child = rigdef.direction_child(skeleton, child)
-    return child
-
-
 def _travel_bone(rig: bpy.types.Object, bone_map: dict[str, str]) -> str:
     """The bone keyed with the body's travel: the hips bone, or, where the spine does not hang below it (MMD's
     上半身 and 下半身 both hang from センター), the nearest bone above both, so the whole body moves."""
@@ -171,28 +163,21 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     c = rigdef.Y_UP_TO_Z_UP
 
     ours = rigdef.rest_heads(skeleton) @ c.T
-    ours_axis = rigdef.tail_offsets(skeleton) @ c.T
     theirs = {j: rest[b][:3, 3] for j, b in mapped.items()}
     frame_keys = [skeleton.index(n) for n in ("left_hip", "right_hip", "pelvis", "neck")]
     q = (
-        rigdef.character_frame(*(theirs[k] for k in frame_keys))
-        @ rigdef.character_frame(*(ours[k] for k in frame_keys)).T
+        character_frame(*(theirs[k] for k in frame_keys))
+        @ character_frame(*(ours[k] for k in frame_keys)).T
     )
     scale = _leg_length(theirs, skeleton) / _leg_length(dict(enumerate(ours)), skeleton)
 
     delta: dict[int, np.ndarray] = {}
     spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig has no bone for
-    for j, bone in mapped.items():
-        first = child = _mapped_chain_child(skeleton, j, mapped)
-        while child is not None and np.linalg.norm(theirs[child] - theirs[j]) <= 1e-6:
-            child = _mapped_chain_child(skeleton, child, mapped)  # one starting at j (MMD's upper body) shows no way
-        if child is not None:
-            v_theirs, v_ours = theirs[child] - theirs[j], ours[child] - ours[j]
-            if child == first != rigdef.direction_child(skeleton, j):
-                spans[j] = child
-        else:
-            v_theirs, v_ours = rest[bone][:3, 1], ours_axis[j]
-        delta[j] = rigdef.min_rotation(v_theirs, q @ v_ours)
+    pairs = bone_directions(skeleton, theirs, {j: rest[b][:3, 1] for j, b in mapped.items()})
+    for j, (v_ours, v_theirs, reach) in pairs.items():
+        delta[j] = min_rotation(v_theirs, q @ c @ v_ours)
+        if reach is not None:
+            spans[j] = reach
 
     p, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
     qc = q @ c

@@ -8,6 +8,7 @@ from typing import TypeVar
 import bpy
 import numpy as np
 
+from dancenet_core.jointmap import tail_offsets
 from dancenet_core.skeleton import DEFAULT_SKELETON, Skeleton
 
 from . import rigdef
@@ -75,7 +76,7 @@ def _unit_sphere(segments: int = 12, rings: int = 8) -> tuple[np.ndarray, list[t
 def mannequin_parts(skeleton: Skeleton) -> list[tuple[str, np.ndarray, np.ndarray, float, float, np.ndarray]]:
     """(bone, start, end, radius x, radius z, roll axis) per body part, in armature (core) space."""
     heads = rigdef.rest_heads(skeleton)
-    tails = rigdef.tail_offsets(skeleton)
+    tails = tail_offsets(skeleton)
     rolls = rigdef.roll_axes(tails)
     parts = []
     for j, name in enumerate(skeleton.names):
@@ -166,7 +167,7 @@ def create_rig(
     `root_bone`, a `root` bone on the floor under the hips is their parent (root motion for game engines).
     """
     heads = rigdef.rest_heads(skeleton)
-    tails = rigdef.tail_offsets(skeleton)
+    tails = tail_offsets(skeleton)
     floor = rigdef.ROOT_BONE if root_bone else None
     rows = [(rigdef.ROOT_BONE, None, (0.0, 0.0, 0.0), rigdef.ROOT_TAIL)] if root_bone else []
     rows += [(bone, skeleton.names[p] if p >= 0 else floor, heads[j], heads[j] + tails[j])

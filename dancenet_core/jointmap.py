@@ -7,12 +7,15 @@ A `JointMap` says which source joint each of our joints is; everything else (fin
    is above the pelvis) and scaled to metres.
 2. A performer skeleton (`performer_skeleton`): our rest offsets with the source's bone lengths (left and right
    averaged, so the mirror augmentation stays exact), so the motion keeps the performer's reach and stride.
-3. Each mapped joint given the source joint's world rotation (`initial_rotations`). This assumes the source's
-   rest pose is, like ours, a Y-up T-pose facing +Z (true of CMU/AMASS BVH and of our own BVH).
+3. Each mapped joint given the source joint's world rotation (`initial_rotations`). For a BVH this assumes the
+   source's rest pose is, like ours, a Y-up T-pose facing +Z (true of CMU/AMASS BVH and of our own BVH); a rig
+   sampled in Blender (`armature_pose`) may rest in any pose, any way up: its turn from rest is carried onto our
+   T-pose through each bone's rest direction (`bone_directions`, the same pairing the add-on keys rigs with).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +81,8 @@ class SourcePose:
     rotations: np.ndarray
     rest: np.ndarray
     fps: float
+    # [K, 3, 3]: per mapped joint the turn from our T-pose bone to the source's rest bone (None: the rests agree)
+    rest_turns: np.ndarray | None = None
 
 
 def check_names(data: BvhData, joint_map: JointMap, path: str) -> None:
@@ -160,7 +165,10 @@ def performer_skeleton(source: SourcePose) -> Skeleton:
     offsets = DEFAULT_SKELETON.offsets * scale[:, None]
     hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
     if all(j in mapped and mapped_ancestor(j, mapped) == 0 for j in hips):
-        hip = 0.5 * (rest_src[hips[0]] - rest_src[0] + (rest_src[hips[1]] - rest_src[0]) * [-1, 1, 1])
+        # as the pelvis holds them in our T-pose (a rig's pelvis may rest turned from ours)
+        back = np.eye(3) if source.rest_turns is None else source.rest_turns[source.joints.index(0)]
+        side = [(rest_src[h] - rest_src[0]) @ back for h in hips]
+        hip = 0.5 * (side[0] + side[1] * [-1, 1, 1])
         offsets[hips] = [hip, hip * [-1, 1, 1]]
     return Skeleton(offsets, end_sites=ends)
 
@@ -177,3 +185,160 @@ def initial_rotations(source: SourcePose) -> np.ndarray:
         world[:, j] = source.rotations[:, col[j]] if j in col else parent
         local[:, j] = Rotation.from_matrix(np.swapaxes(parent, -1, -2) @ world[:, j]).as_rotvec()
     return local
+
+
+# Joints with several children: the one the bone points at (and whose direction a retarget matches).
+_MAIN_CHILD = {
+    "pelvis": "spine1",
+    "spine3": "neck",
+    "left_wrist": "left_middle1",
+    "right_wrist": "right_middle1",
+}
+# Joints whose bone axis says more than any child (the head's children are the jaw and the eyes).
+_NO_DIRECTION_CHILD = frozenset({"head"})
+# Eyes look forward rather than continuing the head-to-eye offset.
+_TAIL_OVERRIDE = {"left_eye_smplhf": (0.0, 0.0, 0.025), "right_eye_smplhf": (0.0, 0.0, 0.025)}
+
+
+def direction_child(skeleton: Skeleton, j: int) -> int | None:
+    """The child joint whose direction bone j follows, or None when the bone's own axis is used."""
+    name = skeleton.names[j]
+    if name in _NO_DIRECTION_CHILD:
+        return None
+    if name in _MAIN_CHILD:
+        return skeleton.index(_MAIN_CHILD[name])
+    children = skeleton.children(j)
+    return children[0] if len(children) == 1 else None
+
+
+def tail_offsets(skeleton: Skeleton) -> np.ndarray:
+    """Bone vectors head -> tail [J, 3] in the core frame.
+
+    An end site (head top, toe end, palm centre) if the joint has one, else the main child, else the
+    joint's own offset direction (finger tips, jaw) at 80% of its length, at least 2 cm.
+    """
+    ends: dict[int, np.ndarray] = {}
+    for site in skeleton.end_sites:
+        ends.setdefault(site.parent, np.asarray(site.offset, dtype=np.float64))
+    tails = np.zeros((skeleton.num_joints, 3))
+    for j, name in enumerate(skeleton.names):
+        child = direction_child(skeleton, j)
+        if name in _TAIL_OVERRIDE:
+            tails[j] = _TAIL_OVERRIDE[name]
+        elif j in ends:
+            tails[j] = ends[j]
+        elif child is not None:
+            tails[j] = skeleton.offsets[child]
+        else:
+            own = skeleton.offsets[j]
+            length = max(0.8 * float(np.linalg.norm(own)), 0.02)
+            tails[j] = own / max(float(np.linalg.norm(own)), 1e-9) * length
+    return tails
+
+
+def character_frame(
+    left_hip: np.ndarray, right_hip: np.ndarray, pelvis: np.ndarray, neck: np.ndarray
+) -> np.ndarray:
+    """Orthonormal frame [3, 3] with columns (left, up, forward) from four rest joint positions.
+
+    Retargeting compares two rigs through these frames, so a rig that faces another way or is stored
+    Y-up (Mixamo imports) still dances facing its own front. Up is the world axis nearest the spine: a rig
+    stands along one, and a spine that leans at rest (Rigify's by 6 degrees more than ours) is posture; taken
+    as up, it would tilt the whole dance, its floor and the feet on it included.
+    """
+    spine = neck - pelvis
+    axis = int(np.argmax(np.abs(spine)))
+    up = np.sign(spine[axis]) * np.eye(3)[axis]
+    left = left_hip - right_hip
+    left = left - (left @ up) * up
+    left = left / np.linalg.norm(left)
+    return np.stack([left, up, np.cross(left, up)], axis=1)
+
+
+def min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation [3, 3] taking direction a onto direction b."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s, c = float(np.linalg.norm(axis)), float(a @ b)
+    if s < 1e-9:
+        if c > 0:
+            return np.eye(3)
+        # Opposite directions: half a turn about any axis perpendicular to a.
+        helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        axis = np.cross(a, helper)
+        s, c = 0.0, -1.0
+    k = axis / np.linalg.norm(axis)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    angle = math.atan2(s, c)
+    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
+
+
+def _chain_child(skeleton: Skeleton, j: int, mapped: set[int] | dict[int, object]) -> int | None:
+    """The mapped joint bone j points at: its direction child, or, when the rig has no bone for that one (a spine
+    of fewer bones), the first mapped joint further along the same chain."""
+    child = direction_child(skeleton, j)
+    while child is not None and child not in mapped:
+        child = direction_child(skeleton, child)
+    return child
+
+
+def bone_directions(skeleton: Skeleton, heads: dict[int, np.ndarray], axes: dict[int, np.ndarray]
+                    ) -> dict[int, tuple[np.ndarray, np.ndarray, int | None]]:
+    """How a rig's rest pose pairs with ours, bone by bone: for each joint the rig has a bone for (`heads`: the
+    bone's rest head, `axes`: its rest axis head -> tail, in the rig's frame), (the bone's direction in our rest
+    pose, in our frame; its direction at the rig's rest; the mapped joint it reaches past joints the rig has no
+    bone for, else None). A bone points at the next mapped joint along its chain that does not start where it
+    does (MMD's upper body starts at its parent); one that ends a chain (the head, a hand without fingers)
+    points along its own axis. Keying a dance onto a rig (the add-on) and reading a rig's clip back
+    (`armature_pose`) turn through the same pairs, so the one undoes the other."""
+    ours = skeleton.rest_positions()
+    ours_axis = tail_offsets(skeleton)
+    out: dict[int, tuple[np.ndarray, np.ndarray, int | None]] = {}
+    for j in heads:
+        first = child = _chain_child(skeleton, j, heads)
+        while child is not None and np.linalg.norm(heads[child] - heads[j]) <= 1e-6:
+            child = _chain_child(skeleton, child, heads)
+        if child is None:
+            out[j] = (ours_axis[j], np.asarray(axes[j], dtype=np.float64), None)
+        else:
+            reach = child if child == first != direction_child(skeleton, j) else None
+            out[j] = (ours[child] - ours[j], heads[child] - heads[j], reach)
+    return out
+
+
+def _unit(m: np.ndarray) -> np.ndarray:
+    """The rotation part [..., 3, 3] of matrices [..., 4, 4], a bone's stretch or the object's scale taken out."""
+    r = m[..., :3, :3]
+    return r / np.linalg.norm(r, axis=-2, keepdims=True)
+
+
+def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: float, name: str) -> SourcePose:
+    """A rig's clip as sampled in Blender, on our terms: `joints` our body joints the rig has bones for, `rest`
+    [K, 4, 4] each one's bone's world rest matrix and `pose` [T, K, 4, 4] its world matrix per frame (Blender's
+    bone convention: the head at the translation, the Y axis along the bone; metres, the object's scale included),
+    at `fps`. Any up axis and facing (read from the rest pose: the spine is up, the hips say left), any rest pose:
+    our joint's world rotation is the bone's turn from its rest, then our T-pose bone turned onto the rig's rest
+    bone (`bone_directions`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose."""
+    need = [n for n in ("pelvis", "left_hip", "right_hip", "neck") if JOINT_INDEX[n] not in joints]
+    if need or any(j >= BODY_JOINTS for j in joints):
+        raise RetargetError(f"{name}: a rig's clip needs bones for the pelvis, hips and neck, and only our body "
+                            f"joints; missing: {', '.join(need) or 'none'}")
+    order = sorted(range(len(joints)), key=lambda k: joints[k])  # parents first
+    ours = [joints[k] for k in order]
+    rest, pose = np.asarray(rest, dtype=np.float64)[order], np.asarray(pose, dtype=np.float64)[:, order]
+    heads = rest[:, :3, 3]
+    col = {j: k for k, j in enumerate(ours)}
+    frame = character_frame(*(heads[col[JOINT_INDEX[n]]] for n in ("left_hip", "right_hip", "pelvis", "neck")))
+    to_ours = frame.T  # the rig's world -> ours: its left, up and front become our +X, +Y and +Z
+    rest_heads = heads @ to_ours.T
+    height = float(np.ptp(rest_heads[:, 1]))
+    if not 0.5 < height < 2.5:
+        raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} m tall; a dancer is 0.5-2.5 m (give the "
+                            "armature object a scale that makes its bones metres)")
+    axes = _unit(rest)[:, :, 1] @ to_ours.T
+    pairs = bone_directions(DEFAULT_SKELETON, {j: rest_heads[k] for k, j in enumerate(ours)},
+                            {j: axes[k] for k, j in enumerate(ours)})
+    turns = np.stack([min_rotation(pairs[j][0], pairs[j][1]) for j in ours])
+    from_rest = to_ours @ _unit(pose) @ np.swapaxes(_unit(rest), -1, -2) @ to_ours.T
+    return SourcePose(ours, pose[..., :3, 3] @ to_ours.T, from_rest @ turns, rest_heads, fps, turns)

@@ -6,6 +6,10 @@ centimetres, millimetres or inches: `rootmotion.read_dance_bvh`) or CMU's joint 
 metres or centimetres: retargeted by the CMU joint map, `jointmap.py`). Either may be Y- or Z-up (the head above
 the pelvis tells). CMU clips take each mapped joint's world rotation (the rest poses agree), without the dataset
 build's position fit: the fit needs torch and about 35 s per minute of motion, this a fraction of a second.
+In Blender, a clip may also be a rig's animation (an FBX file of the folder, or an action of the open file): the
+add-on samples each mapped bone's world matrices (`ArmatureClip`), and `armature_motion` reads them onto our
+skeleton whatever the rig's rest pose (`jointmap.armature_pose`). The command line, without Blender, reads no FBX:
+a folder holding some answers so in one line.
 Clips are resampled to the library's 25 fps and put on the floor (`floor.floor_track`). A clip's style is its
 folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`).
 Anything else in the folder is left out with a one-line note.
@@ -17,8 +21,9 @@ Torch-free and without the data package (the add-on's Build Library runs it insi
 from __future__ import annotations
 
 import csv
-from collections.abc import Callable
-from dataclasses import replace
+import hashlib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,14 +32,14 @@ from scipy.spatial.transform import Rotation
 from ..bvh import read_bvh
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..floor import floor_track
-from ..jointmap import CMU, initial_rotations, performer_skeleton, source_pose, up_rotation
+from ..jointmap import CMU, armature_pose, initial_rotations, performer_skeleton, source_pose, up_rotation
 from ..kinematics import fk_numpy
 from ..motion import Motion
 from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
 from .analysis import analyze_clip
-from .store import LIBRARY_FPS, MotionLibrary, clip_files, library_path
+from .store import LIBRARY_FPS, LIBRARY_VERSION, MotionLibrary, built_path, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
 DANCER_HEIGHT_M = 1.7  # the unit of a CMU clip is the one that makes its rest pose nearest this tall
@@ -76,11 +81,40 @@ def read_clip(path: Path) -> Motion:
     else:
         raise DanceNetError(f"{path.name}: not a skeleton the library reads (DanceNet's 55 joints or CMU's names; "
                             f"this one has {len(data.names)} joints: {', '.join(data.names[:6])}...)")
+    return _as_clip(motion, path.name)
+
+
+def _as_clip(motion: Motion, name: str) -> Motion:
+    """A clip read onto our skeleton, as the library keeps it: at 25 fps, feet on the floor; a one-line
+    DanceNetError when it is too short to hold a bar."""
     motion = motion.resampled(LIBRARY_FPS)
     if motion.duration < MIN_CLIP_S:
-        raise DanceNetError(f"{path.name}: {motion.duration:.2f} s, too short to hold a bar")
+        raise DanceNetError(f"{name}: {motion.duration:.2f} s, too short to hold a bar")
     motion.root_positions[:, 1] -= floor_track(motion)
     return motion
+
+
+@dataclass
+class ArmatureClip:
+    """A rig's animation as the add-on samples it in Blender: our body joints the rig has bones for (`joints`),
+    each one's bone's world rest matrix [K, 4, 4] (`rest`) and world matrix per frame [T, K, 4, 4] (`pose`), at
+    `fps`; see `jointmap.armature_pose`. `name` and `style` are the clip's in the library."""
+
+    name: str
+    style: str
+    joints: list[int]
+    rest: np.ndarray
+    pose: np.ndarray
+    fps: float
+
+
+def armature_motion(clip: ArmatureClip) -> Motion:
+    """A rig's clip as a library clip, like a BVH's (`read_clip`): on a skeleton of the rig's bone lengths, at
+    25 fps, feet on the floor; a one-line DanceNetError when it cannot be one."""
+    source = armature_pose(clip.joints, clip.rest, clip.pose, clip.fps, clip.name)
+    skeleton = performer_skeleton(source)
+    root = source.positions[:, source.joints.index(0)] - skeleton.offsets[0]
+    return _as_clip(Motion(initial_rotations(source), root, clip.fps, skeleton), clip.name)
 
 
 def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
@@ -96,24 +130,42 @@ def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
     return styles
 
 
+def is_fbx(path: Path) -> bool:
+    return path.suffix.lower() == ".fbx"
+
+
+def cached(path: Path, force: bool, report: Callable[[str], object]) -> MotionLibrary | None:
+    """The library built before at `path`, if any (None: build it, also when that one is damaged)."""
+    if path.is_file() and not force:
+        try:
+            return MotionLibrary.load(path)
+        except ValueError as e:
+            report(f"rebuilding the library: {first_line(e)}")
+    return None
+
+
 def build_library(folder: str | Path, force: bool = False, report: Callable[[str], object] = print,
-                  progress: StageProgress | None = None,
-                  should_cancel: Callable[[], bool] | None = None) -> tuple[MotionLibrary, Path]:
+                  progress: StageProgress | None = None, should_cancel: Callable[[], bool] | None = None,
+                  fbx: Mapping[Path, ArmatureClip | str] | None = None) -> tuple[MotionLibrary, Path]:
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
-    written)."""
+    written). `fbx`: the folder's FBX files as Blender sampled them (or why it could not, one line each);
+    without it a folder with FBX files is answered in one line (only Blender reads them)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
     path = library_path(folder)
-    if path.is_file() and not force:
-        try:
-            return MotionLibrary.load(path), path
-        except ValueError as e:
-            report(f"rebuilding the library: {first_line(e)}")
+    if (library := cached(path, force, report)) is not None:
+        return library, path
     files = clip_files(folder)
     if not files:
-        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style)")
+        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; in "
+                            "Blender also .fbx)")
+    fbx_files = [f for f in files if is_fbx(f)]
+    if fbx_files and fbx is None:
+        raise DanceNetError(f"{folder} holds {len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''} "
+                            f"({fbx_files[0].name}...), which only Blender reads: build this folder with Build "
+                            "Library in the DanceNet add-on's panel")
     styles = clip_styles(folder, files)
     clips, notes = [], []
     for i, f in enumerate(files):
@@ -122,7 +174,7 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
         if progress is not None:
             progress(f"reading {f.name}", i / len(files))
         try:
-            motion = read_clip(f)
+            motion = _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)
         except DanceNetError as e:
             notes.append(f"left out {first_line(e)}")
             report(notes[-1])
@@ -130,7 +182,56 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
         clips.append((str(f.relative_to(folder)), styles[f], motion, analyze_clip(motion, styles[f])))
     if not clips:
         raise DanceNetError(f"none of the {len(files)} BVH clips in {folder} could be read: {notes[0]}")
-    library = MotionLibrary.from_clips(clips, tuple(notes))
+    return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
+
+
+def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
+    """An FBX file's clip from what Blender sampled of it."""
+    if not isinstance(sampled, ArmatureClip):
+        raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
+    return armature_motion(sampled)
+
+
+def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
     path.parent.mkdir(parents=True, exist_ok=True)
     library.save(path)
-    return library, path
+    return library
+
+
+def clips_key(clips: Sequence[ArmatureClip]) -> str:
+    """A digest of sampled clips (names, styles, joints, rest and pose matrices, rates): where their library is
+    cached."""
+    h = hashlib.sha256(LIBRARY_VERSION.encode())
+    for c in clips:
+        h.update(f"{c.name}\0{c.style}\0{c.joints}\0{c.fps!r}\0".encode())
+        h.update(np.ascontiguousarray(c.rest, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(c.pose, dtype=np.float64).tobytes())
+    return "clips-" + h.hexdigest()[:32]
+
+
+def build_armature_library(clips: Sequence[ArmatureClip], notes: Sequence[str] = (), force: bool = False,
+                           report: Callable[[str], object] = print, progress: StageProgress | None = None,
+                           should_cancel: Callable[[], bool] | None = None) -> tuple[MotionLibrary, Path]:
+    """A library of rigs' clips (the add-on's \"Armature actions in this file\"), cached by their content
+    (`clips_key`); `notes` are what the sampling already left out, one line each. As `build_library` otherwise."""
+    if not clips:
+        raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
+    path = built_path(clips_key(clips))
+    if (library := cached(path, force, report)) is not None:
+        return library, path
+    done, left = [], [f"left out {n}" for n in notes]
+    for i, c in enumerate(clips):
+        if should_cancel is not None and should_cancel():
+            raise GenerationCancelled
+        if progress is not None:
+            progress(f"reading {c.name}", i / len(clips))
+        try:
+            motion = armature_motion(c)
+        except DanceNetError as e:
+            left.append(f"left out {first_line(e)}")
+            report(left[-1])
+            continue
+        done.append((c.name, c.style, motion, analyze_clip(motion, c.style)))
+    if not done:
+        raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
+    return _saved(MotionLibrary.from_clips(done, tuple(left)), path), path

@@ -23,7 +23,7 @@ from .analysis import FEATURE_DIM, ClipAnalysis
 
 LIBRARY_VERSION = "motion-library-1"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
-CLIP_SUFFIXES = (".bvh",)
+CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
 DEFAULT_LIBRARY = WEIGHTS_DIR / "cmu_dance_library.npz"
 
@@ -148,7 +148,7 @@ class MotionLibrary:
 
 
 def clip_files(folder: Path) -> list[Path]:
-    """The clips of a library folder (BVH files, any depth), in a fixed order."""
+    """The clips of a library folder (BVH and FBX files, any depth), in a fixed order."""
     return sorted(p for p in folder.rglob("*") if p.suffix.lower() in CLIP_SUFFIXES and p.is_file())
 
 
@@ -164,14 +164,25 @@ def folder_key(folder: str | Path) -> str:
     return h.hexdigest()[:32]
 
 
+def built_path(key: str) -> Path:
+    """Where the library of content `key` is cached."""
+    return cache_root() / LIBRARY_VERSION / f"{key}.npz"
+
+
 def library_path(folder: str | Path) -> Path:
     """Where the library built from `folder` is cached."""
-    return cache_root() / LIBRARY_VERSION / f"{folder_key(folder)}.npz"
+    return built_path(folder_key(folder))
 
 
 def load_built(folder: str | Path) -> MotionLibrary:
-    """The library built from `folder` (by `dancenet library build`), or a one-line error saying to build it."""
+    """The library built from `folder` (by `dancenet library build`), or a one-line error saying to build it. A
+    built library's own file (.npz, as the add-on's library of the actions in a .blend is given) is read as is."""
     folder = Path(folder)
+    if folder.suffix == ".npz" and folder.is_file():
+        try:
+            return MotionLibrary.load(folder)
+        except ValueError as e:
+            raise DanceNetError(f"{e}; build the library again") from e
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
     path = library_path(folder)

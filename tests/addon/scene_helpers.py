@@ -99,6 +99,7 @@ def build_armature(name: str, bones, mixamo_import: bool = True, seed: int = 0):
 def assert_dances_like(rig, mapping: dict[str, str], motion, first_frame: int, scale: float) -> None:
     """Mapped bones point where our FK's joints point (< 0.5 degree) and the hips travel as our pelvis."""
     from blender_addon import rigdef
+    from dancenet_core.jointmap import direction_child
 
     fk = fk_world(motion)
     pelvis = mapping["pelvis"]
@@ -107,7 +108,7 @@ def assert_dances_like(rig, mapping: dict[str, str], motion, first_frame: int, s
     pairs = [
         (DEFAULT_SKELETON.index(j), c)
         for j in mapping
-        if (c := rigdef.direction_child(DEFAULT_SKELETON, DEFAULT_SKELETON.index(j))) is not None
+        if (c := direction_child(DEFAULT_SKELETON, DEFAULT_SKELETON.index(j))) is not None
         and JOINT_NAMES[c] in mapping
     ]
     assert len(pairs) >= 20

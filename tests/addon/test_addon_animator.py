@@ -486,13 +486,14 @@ def landing_error(rig, mapping: dict[str, str], motion, first_frame: int) -> flo
     """Worst distance over frames between the rig's feet, hands and head and where the dance puts them
     (our FK scaled to the rig's height, from its hips' rest place), as a share of the rig's height."""
     from blender_addon import rigdef
+    from dancenet_core.jointmap import tail_offsets
 
     skeleton = motion.skeleton  # the shipped model's own bone lengths, not the default skeleton's
     rest = {b.name: np.array(rig.matrix_world @ b.head_local) for b in rig.data.bones}
     tails = np.array([rig.matrix_world @ b.tail_local for b in rig.data.bones])
     height = float(np.ptp(np.concatenate([np.array(list(rest.values())), tails])[:, 2]))
     ours = rigdef.rest_heads(skeleton) @ rigdef.Y_UP_TO_Z_UP.T
-    ours_tails = ours + rigdef.tail_offsets(skeleton) @ rigdef.Y_UP_TO_Z_UP.T
+    ours_tails = ours + tail_offsets(skeleton) @ rigdef.Y_UP_TO_Z_UP.T
     scale = height / float(np.ptp(np.concatenate([ours, ours_tails])[:, 2]))
     fk = fk_world(motion)
     ends = [j for j in ("left_ankle", "right_ankle", "left_foot", "right_foot", "left_wrist", "right_wrist", "head")
