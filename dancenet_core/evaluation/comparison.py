@@ -302,8 +302,10 @@ def compare(args: argparse.Namespace) -> int:
         lib = table["library"]
         md += (f"\nMotion library engine: a library of {lib['library_min']} min (the training dances); share of "
                f"frames from runs of one clip longer than {lib['long_run_bars']} bars {lib['long_run_share']:.3f} "
-               f"(mean per dance), longest run {lib['longest_run_s']:.1f} s; largest joint step at a cut "
-               f"{lib['max_transition_step_over_p99']:.2f}x the capture's 99th percentile (the capture's own largest: "
+               f"(mean per dance), longest run {lib['longest_run_s']:.1f} s; largest joint step a cut made "
+               f"{lib['max_cut_step']:.2f}x the capture's 99th percentile or its source clip's own step there "
+               f"({lib['cuts_over']} of {lib['cuts']} cuts over 1x; counting the clips' own steps too "
+               f"{lib['max_window_step_over_p99']:.2f}x; the capture's own largest: "
                f"{lib['capture_max_step_over_p99']:.2f}x), frames blended at cuts with a joint over it "
                f"{lib['transition_frames_over_p99']:.1%} (the capture's own frames: "
                f"{lib['capture_frames_over_p99']:.1%}); largest time-warp "

@@ -29,7 +29,7 @@ from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from .analysis import POSE_DIM, frame_features
 from .store import MotionLibrary
-from .transitions import CUT_BLEND_S, Figure, render
+from .transitions import CUT_BLEND_S, Figure, Rendered, cut_steps, render
 
 WARP_RANGE = 0.15  # a figure may be slowed or hurried by this much per beat
 # A cut's new figure: its joints' steps over the frames the cut blends (and the one before) at most this share of
@@ -77,6 +77,8 @@ class Report:
     figures: list[dict] = field(default_factory=list)
     cuts: list[int] = field(default_factory=list)  # frames where a new clip (or a jump within one) starts
     blends: list[int] = field(default_factory=list)  # frames over which each cut's difference fades
+    # each cut's largest joint step past its 99th percentile and past its source clip's own step (1: none past)
+    cut_steps: list[float] = field(default_factory=list)
     long_run_share: float = 0.0  # share of frames from runs of one clip longer than LONG_RUN_BARS bars
     longest_run_bars: int = 0
     longest_run_s: float = 0.0
@@ -85,7 +87,8 @@ class Report:
     def summary(self) -> dict:
         return {"figures": len(self.figures), "cuts": len(self.cuts), "long_run_bars": LONG_RUN_BARS,
                 "long_run_share": round(self.long_run_share, 4), "longest_run_bars": self.longest_run_bars,
-                "longest_run_s": round(self.longest_run_s, 2), "max_warp": round(self.max_warp, 4)}
+                "longest_run_s": round(self.longest_run_s, 2), "max_warp": round(self.max_warp, 4),
+                "max_cut_step": round(max(self.cut_steps, default=0.0), 3)}
 
 
 @dataclass
@@ -282,14 +285,15 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     for _ in range(takes):
         bars = plan(library, grid, onset, rng, style, settings, previous)
         figures = [Figure(s, n, grid.beats[a : a + n + 1]) for (s, n), (a, _) in zip(bars, grid.bars, strict=True)]
-        motion, cuts, blends = render(library, figures, start_s, end, kept)
-        dances.append(LibraryDance(motion, report(library, figures, cuts, blends, grid, start_s, end)))
+        rendered = render(library, figures, start_s, end, kept)
+        dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
 
 
-def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], blends: list[int], grid: Grid,
-           start_s: float, end_s: float) -> Report:
-    """The figures (clip, where in it, where in the song), the runs of one clip and the largest time-warp."""
+def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,
+           end_s: float) -> Report:
+    """The figures (clip, where in it, where in the song), the runs of one clip, the largest time-warp and each
+    cut's largest step (`transitions.cut_steps`)."""
     rows, runs, warp = [], [], 0.0
     for k, f in enumerate(figures):
         clip = int(library.beat_clip[f.start])
@@ -307,5 +311,6 @@ def report(library: MotionLibrary, figures: list[Figure], cuts: list[int], blend
             runs.append((1, song[-1] - song[0]))
     total = max(end_s - start_s, 1e-9)
     longest = max(runs, key=lambda r: r[1])
-    return Report(rows, cuts, blends, float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total),
-                  int(longest[0]), float(longest[1]), warp)
+    return Report(rows, rendered.cuts, rendered.blends, cut_steps(rendered, library.step_p99),
+                  float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total), int(longest[0]), float(longest[1]),
+                  warp)

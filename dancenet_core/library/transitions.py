@@ -35,8 +35,9 @@ MAX_BLEND_S = 1.2
 # Shares of a cut's velocity difference its fade carries, tried in turn until no joint steps past its percentile:
 # carrying all of it, the fade must take back the ground the difference covers (about half the difference again,
 # 0.6 into the fade, whatever its length). Largest step at a cut 1.22x -> 1.07x the 99th percentile, frames over it
-# 0.3% -> 0.1% (`dancenet evaluate --library-only --takes 2`, with the hold limited as `hold_stance` says).
-VELOCITY_KEPT = (1.0, 0.5, 0.0)
+# 0.3% -> 0.1% (`dancenet evaluate --library-only --takes 2`, with the hold limited as `hold_stance` says); a
+# quarter as well: the last cut over it (1.004x) under it.
+VELOCITY_KEPT = (1.0, 0.5, 0.25, 0.0)
 # A foot is held while it stands: near the floor and slower than this in its source clip. The capture's own contacts
 # (`representation.CONTACT_SPEED_MPS`, 0.35 m/s) at the largest time-warp (about 30% faster) are 0.45 m/s.
 HOLD_SPEED_MPS = 0.5
@@ -88,10 +89,36 @@ def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) ->
     return rot, root
 
 
+@dataclass
+class Rendered:
+    """A dance cut from a library: its frames, its cuts (first frame of each new run), how many frames each cut's
+    blend took, and each frame-to-frame step of each body joint as its source clip makes it ([T - 1, J] metres,
+    time-warped and placed; 0 for the step across a cut)."""
+
+    motion: Motion
+    cuts: list[int]
+    blends: list[int]
+    own_steps: np.ndarray
+
+
+def cut_window(cut: int, blend: int, fps: float) -> slice:
+    """The steps a cut is answerable for: from the frame before it to the end of its blend (at least `CUT_BLEND_S`)."""
+    return slice(max(cut - 1, 0), cut + max(blend, int(round(CUT_BLEND_S * fps)) + 1))
+
+
+def cut_steps(rendered: Rendered, step_p99: np.ndarray) -> list[float]:
+    """Per cut, the largest step the cut made over its window (`cut_window`): each joint's step over the larger of its
+    99th percentile (`step_p99` [J]) and the step its source clip makes there, so that a clip's own fast frames,
+    which a cut can only pass on, do not count against it (the step across the cut has no source step)."""
+    pos = rendered.motion.positions()[:, :BODY_JOINTS]
+    made = np.linalg.norm(np.diff(pos, axis=0), axis=-1) / np.maximum(step_p99, rendered.own_steps)
+    return [float(made[cut_window(c, m, rendered.motion.fps)].max())
+            for c, m in zip(rendered.cuts, rendered.blends, strict=True)]
+
+
 def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s: float,
-           kept: Motion | None = None) -> tuple[Motion, list[int], list[int]]:
-    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate, the frames of its cuts and
-    how many frames each cut's blend took.
+           kept: Motion | None = None) -> Rendered:
+    """The dance from `start_s` to `end_s` (song seconds) at the library's frame rate (see `Rendered`).
     With `kept` (a dance at the library's frame rate that ends where this one starts) the first run goes on from
     its last pose as a run goes on after a cut: placed where the kept root would have gone on to, facing its way,
     and the difference from its last two frames faded out."""
@@ -117,6 +144,7 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     turn, shift = -float(_yaw(rot[:1, 0])[0]), np.zeros(2)
     placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
+    own_steps = np.zeros((n - 1, BODY_JOINTS))  # the source clips' own steps, before any blend
     blends: list[int] = []  # frames each cut's offset takes to fade
     bounds = [0, *cuts, n]
     for r, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
@@ -134,6 +162,7 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
         placed_rot[a:b], placed_root[a:b] = _place(rot[a:b], root[a:b], turn, shift)
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
         contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
+        own_steps[a : b - 1] = np.linalg.norm(np.diff(source.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
         if r > 0:  # the two frames before the cut (one twice when the dance's first figure is a frame long)
             before = [max(a - 2, 0), a - 1]
             blends.append(_inertialise(library, placed_rot, placed_root, placed_rot[before], placed_root[before],
@@ -144,7 +173,9 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     stance = contact[1:] & contact[:-1]
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
-    return Motion(placed_rot, hold_stance(motion, stance, library.step_p99), fps, library.skeleton), cuts, blends
+    held = Motion(placed_rot, hold_stance(motion, stance, np.maximum(library.step_p99, own_steps)), fps,
+                  library.skeleton)
+    return Rendered(held, cuts, blends, own_steps)
 
 
 def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None) -> np.ndarray:
@@ -160,8 +191,9 @@ def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | Non
     (real 0.500) and the root extent 1.17x -> 1.11x real's; the correction unsmoothed shook the body (kinetic FID
     8.5 -> 13.3; smoothed 9.7).
 
-    With `step_limit` (each body joint's 99th percentile step, [BODY_JOINTS]) a frame's correction is scaled down
-    (by quarters) where it would move some joint further than that while the motion itself does not: the blend
+    With `step_limit` (how far each body joint may step, [BODY_JOINTS] or per step [T - 1, BODY_JOINTS]: its 99th
+    percentile, or its source clip's own step where that is further) a frame's correction is scaled down (by
+    quarters) where it would move some joint further than that while the motion itself does not: the blend
     moves a planted foot, and carrying the body after it pushed the hands past their percentile 5 frames into a
     cut: of the evaluation's 412 cuts, 24 -> 2 over it, largest 1.39x -> 1.07x, foot slide 0.458 -> 0.460
     (`dancenet evaluate --library-only --takes 2`)."""
@@ -179,8 +211,8 @@ def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | Non
 
 def _within_limit(steps: np.ndarray, slip: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """Per frame, the largest share (0, 1/4, ..., 1) of the floor correction `slip` [T - 1, 2] that keeps every
-    joint's step (`steps` [T - 1, J, 3], less the correction) within `limit` [J]; where none does, the share whose
-    largest step is least."""
+    joint's step (`steps` [T - 1, J, 3], less the correction) within `limit` ([J] or [T - 1, J]); where none does,
+    the share whose largest step is least."""
     shares = np.linspace(0.0, 1.0, 5)
     worst = np.stack([(np.linalg.norm(steps - s * np.stack([slip[:, 0], np.zeros(len(slip)), slip[:, 1]], -1)[:, None],
                                       axis=-1) / limit).max(axis=1) for s in shares], axis=1)
@@ -205,9 +237,10 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
                  old_root: np.ndarray, pos: np.ndarray, clip: np.ndarray, a: int, b: int, turn: float,
                  shift: np.ndarray) -> int:
     """Fade the new run's (from frame `a`) difference from the old one's last two frames (`old_rot` [2, J, 3],
-    `old_root` [2, 3]) out over its first frames (in place): over `CUT_BLEND_S`, or longer (up to `MAX_BLEND_S`)
-    until no body joint steps further in a frame than its 99th percentile in the library, where a longer fade
-    gets there (else the fade whose largest step is least). Returns the frames it took."""
+    `old_root` [2, 3]) out over its first frames (in place): over `CUT_BLEND_S`, or longer (up to `MAX_BLEND_S`),
+    carrying less of the velocity difference (`VELOCITY_KEPT`), until no body joint steps further in a frame than its
+    99th percentile in the library or its source clip's own step there (`cut_steps`), where a longer fade gets there
+    (else the fade whose largest step is least). Returns the frames it took."""
     step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
     lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
     lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
@@ -217,6 +250,11 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
     shortest = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
     longest = min(b - a, max(shortest, int(round(MAX_BLEND_S * library.fps))))
     before = Motion(old_rot[-1:], old_root[-1:], library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
+    own = Motion(rot[a : a + longest], root[a : a + longest], library.fps,
+                 library.skeleton).positions()[:, :BODY_JOINTS]
+    # what a step may reach: its percentile, or the source clip's own step there (none for the step across the cut)
+    bound = np.maximum(library.step_p99, np.concatenate([np.zeros((1, own.shape[1])),
+                                                         np.linalg.norm(np.diff(own, axis=0), axis=-1)]))
     root_diff = old_root - lead_root
     best = None
     for keep in VELOCITY_KEPT:
@@ -226,7 +264,7 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
             moved = root[a : a + m] + _fade(m, _damped(root_diff, keep))
             after = Motion(blended, moved, library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
             worst = float((np.linalg.norm(np.diff(np.concatenate([before, after]), axis=0), axis=-1)
-                           / library.step_p99).max())
+                           / bound[:m]).max())
             if best is None or worst < best[0]:
                 best = (worst, m, blended, moved)
             if worst <= 1.0:

@@ -19,7 +19,7 @@ from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
 from dancenet_core.library.store import MotionLibrary
-from dancenet_core.library.transitions import hold_stance
+from dancenet_core.library.transitions import Figure, cut_steps, hold_stance, render
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
@@ -100,6 +100,19 @@ def test_no_joint_jumps_at_a_cut(library: MotionLibrary) -> None:
     step = np.linalg.norm(np.diff(dance.motion.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
     at_cuts = np.concatenate([step[c - 1 : c + 11] for c in dance.report.cuts])
     assert (at_cuts <= 1.2 * p99).all()  # the capture's 99th percentile, with a 20% margin for the warp
+
+
+def test_the_cut_report_sees_a_jump(library: MotionLibrary) -> None:
+    """Each cut's reported step (`cut_steps`): about the percentile or the source clip's own step at most for the
+    dances the engine plans (5% margin: the blend's search stops at 1 before the hold and another CPU's rounding);
+    a jump of the body at a cut shows."""
+    dance = choreograph(library, song(90, 112), seed=3, settings=Settings(noise=1.0))[0]
+    assert dance.report.cuts and max(dance.report.cut_steps) <= 1.05
+    rendered = render(library, [Figure(s, 4, 0.3 + np.arange(5) * 60 / 112 + 4 * k * 60 / 112)
+                                for k, s in enumerate((0, 40, 90, 8))], 0.3, 8.0)
+    assert len(rendered.cuts) == 3 and max(cut_steps(rendered, library.step_p99)) < 1.5
+    rendered.motion.root_positions[rendered.cuts[1] :, 2] += 0.1  # 10 cm forward in one frame
+    assert cut_steps(rendered, library.step_p99)[1] > 2.0
 
 
 def test_without_blending_a_cut_would_jump(library: MotionLibrary) -> None:
