@@ -21,6 +21,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--temperatures", type=float, nargs="+", default=[0.1, 0.3, 0.5, 1.0])
     p.add_argument("--smoothing", type=float, nargs="+", default=[1.0], help="output smoothing sigmas (frames)")
     p.add_argument("--takes", type=int, default=2)
+    p.add_argument("--footfix", type=Path, default=None, metavar="NPZ",
+                   help="a foot model's runtime weights (a run's footfix.npz) instead of the shipped one")
     p.add_argument("--curve", type=Path, default=None, metavar="RUN",
                    help="instead: the learning curve of a training run folder (its snapshots and log)")
     p.set_defaults(handler=comparison.validate)

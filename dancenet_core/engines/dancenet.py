@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from functools import lru_cache
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,10 +51,10 @@ def load_bundle(path: str | None = None) -> RuntimeBundle:
     return bundle
 
 
-@lru_cache(maxsize=1)
-def foot_fixer() -> RuntimeFootFixer:
-    """The shipped Foot Constraint Model (loaded once)."""
-    return RuntimeFootFixer.load()
+@lru_cache(maxsize=2)
+def foot_fixer(path: Path | None = None) -> RuntimeFootFixer:
+    """The shipped Foot Constraint Model, or the one at `path` (a run's `footfix.npz`, for validation); loaded once."""
+    return RuntimeFootFixer.load() if path is None else RuntimeFootFixer.load(path)
 
 
 def sample_dance(bundle: Bundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,

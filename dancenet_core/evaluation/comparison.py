@@ -186,13 +186,15 @@ def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs:
 
 
 def dance_row(name: str, label: str, bundle: DanceNetBundle, test_pairs: list, beats: dict, takes: int,
-              temperature: float, footfix: bool = False, smoothing: float | None = None) -> DanceSet:
+              temperature: float, footfix: bool = False, smoothing: float | None = None,
+              footfix_weights: Path | None = None) -> DanceSet:
     """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k)."""
     row = DanceSet(name, label, info={"steps": bundle.info.get("steps"),
                                       "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
     for pair in test_pairs:
         for take in range(takes):
-            row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing)[0])
+            row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing,
+                                                footfix_weights)[0])
             row.styles.append(pair.style)
             row.beats_s.append(beats[pair.seq])
     return row
@@ -365,7 +367,7 @@ def validate(args: argparse.Namespace) -> int:
                 name = f"{path} T={temperature} smooth={smoothing}"
                 rows.append(dance_row(name, f"{run_label(Path(path), bundle)} (K={k}), T {temperature}, "
                                       f"smoothing {smoothing}", bundle, val, beats, args.takes, temperature,
-                                      footfix=True, smoothing=smoothing))
+                                      footfix=True, smoothing=smoothing, footfix_weights=args.footfix))
                 print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
     table = measure(rows, ref, fps, style_net)
     if args.drift:
@@ -417,7 +419,8 @@ def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net: Moti
             continue
         bundle = DanceNetBundle.load(path)
         step = bundle.info["steps"]
-        row = dance_row(path.stem, path.stem, bundle, val, beats, 1, args.temperatures[0], footfix=True)
+        row = dance_row(path.stem, path.stem, bundle, val, beats, 1, args.temperatures[0], footfix=True,
+                        footfix_weights=args.footfix)
         r = measure([row], ref, bundle.model.cfg.fps, style_net)[path.stem]
         near = [s for s in val_loss if s <= step]
         points.append({"step": step, "minutes": round(bundle.info["train_seconds"] / 60, 1),

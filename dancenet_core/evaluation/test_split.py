@@ -52,9 +52,10 @@ def dance_metrics(motion: Motion, beats_s: np.ndarray) -> dict[str, float]:
 
 
 def generate_for_pair(bundle: DanceNetBundle, pair: PairedSequence, seed: int, temperature: float,
-                      footfix: bool, smoothing: float | None = None) -> tuple[Motion, np.ndarray]:
+                      footfix: bool, smoothing: float | None = None,
+                      footfix_weights: Path | None = None) -> tuple[Motion, np.ndarray]:
     """The bundle's model's dance to a test sequence's music span, from the real dance's first frame;
-    returns the motion and predicted contacts."""
+    returns the motion and predicted contacts. `footfix_weights`: a foot model other than the shipped one."""
     cfg = bundle.model.cfg
     style = pair.style if pair.style in bundle.styles else bundle.styles[0]
     first = bundle.normalizer.normalize(pair.motion[:1])[0]
@@ -62,7 +63,7 @@ def generate_for_pair(bundle: DanceNetBundle, pair: PairedSequence, seed: int, t
                                np.random.default_rng(seed))
     feats = finish_frames(bundle, frames, OUTPUT_SMOOTHING_FRAMES if smoothing is None else smoothing)
     if footfix:
-        feats = foot_fixer()(feats)
+        feats = foot_fixer(footfix_weights)(feats)
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     return decode(feats, cfg.fps, bundle.skeleton), feats[:, layout.contacts]
 

@@ -102,6 +102,7 @@ class FootfixSettings:
     seeds: int = _option(2, "DanceNet dances per training song for the contact loss")
     slide_weight: float = _option(2.5, "weight of the contact loss's sliding term")
     root_weight: float = _option(3.0, "weight of the contact loss's pelvis-velocity term")
+    dancenet: Path = _option(WEIGHTS_DIR / "dancenet.pt", "DanceNet weights whose dances it learns to fix")
     out: Path = _option(WEIGHTS_DIR / "footfix.pt", "weights file to write")
 
 

@@ -42,7 +42,7 @@ from ..engines.dancenet import sample_dance
 from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..evaluation.metrics import CONTACT_TOE_M
-from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+from ..nets.bundle import DanceNetBundle
 from ..nets.export import fixer_to_runtime
 from ..nets.footfix import FootChannels, FootConstraintModel, FootFixer, ToeKinematics
 from ..representation import FeatureLayout, Normalizer
@@ -216,7 +216,7 @@ def train_footfix(args: FootfixSettings) -> dict:
     train = [norm.normalize(q.motion) for q in train_pairs] + [norm.normalize(q.mirrored) for q in train_pairs]
     test = [norm.normalize(q.motion) for q in pairs if q.seq in split["test"]]
     ch = FootChannels.for_layout(layout)
-    bundle = DanceNetBundle.load(DEFAULT_BUNDLE)
+    bundle = DanceNetBundle.load(args.dancenet)
     t0 = time.time()
     known = [q for q in train_pairs if q.style in bundle.styles]
     dances = [norm.normalize(f) for f in dancenet_dances(bundle, known, args.seeds, DEFAULT_TEMPERATURE)]
