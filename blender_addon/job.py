@@ -8,7 +8,7 @@ import traceback
 from collections.abc import Callable
 from typing import Any
 
-from dancenet_core.errors import DanceNetError
+from dancenet_core.errors import DanceNetError, GenerationCancelled
 from dancenet_core.progress import StageProgress
 from dancenet_core.request import DanceRequest
 
@@ -54,6 +54,9 @@ class Job:
         except Exception as e:  # reported on the main thread; a cancelled job's error is dropped
             self.error = e
 
+    def poll(self) -> None:
+        """The operator's tick on the main thread (a worker's job has nothing to do there; `Staged` does)."""
+
     def progress(self) -> tuple[str, float]:
         with self._lock:
             return self._stage, self._fraction
@@ -74,3 +77,57 @@ def generation(generator: Callable[[], Generator], request: DanceRequest) -> Job
     seconds, which must not freeze the UI)."""
     return Job(lambda progress, should_cancel: generator()(request, progress=progress, should_cancel=should_cancel),
                "dancenet-generate")
+
+
+# A step of a `Staged` job: (what the status bar says, the step; it runs on the main thread and may use bpy).
+Step = tuple[str, Callable[[], Any]]
+
+
+class Staged(Job):
+    """Steps that need bpy (sampling rigs in Blender for a library), one per `poll` on the main thread, so the
+    status bar moves and Esc is heard between them; then the work their results make (`then`) on a worker thread.
+    `run_now` does it all on the calling thread (scripts, background mode)."""
+
+    def __init__(self, steps: list[Step], then: Callable[[list[Any]], Work], name: str) -> None:
+        super().__init__(self._after_steps, name)
+        self._steps, self._then, self._results = steps, then, []
+        self._next: Work | None = None
+
+    def _after_steps(self, progress: StageProgress, should_cancel: Callable[[], bool]) -> Any:
+        assert self._next is not None
+        return self._next(progress, should_cancel)
+
+    def start(self) -> None:
+        """The steps start at the first `poll`."""
+
+    def poll(self) -> None:
+        if self._thread.ident is not None or self.error is not None:  # the work started, or a step failed
+            return
+        if self._cancel.is_set():
+            self.error = GenerationCancelled()
+        elif len(self._results) < len(self._steps):
+            stage, step = self._steps[len(self._results)]
+            self._progress(stage, len(self._results) / max(len(self._steps), 1))
+            try:
+                self._results.append(step())
+            except Exception as e:  # reported on the main thread as a worker's error is
+                self.error = e
+        else:
+            self._next = self._then(self._results)
+            self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return self.error is not None or (self._thread.ident is not None and not self._thread.is_alive())
+
+    def join(self, timeout: float | None = None) -> None:
+        """The steps (here, on the calling thread), then the work's thread."""
+        while self._thread.ident is None and self.error is None:
+            self.poll()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+    def run_now(self) -> Any:
+        """Every step, then the work, on the calling thread."""
+        results = [step() for _stage, step in self._steps]
+        return self._then(results)(lambda _stage, _fraction: None, lambda: False)

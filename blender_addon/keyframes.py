@@ -174,10 +174,10 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     delta: dict[int, np.ndarray] = {}
     spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig has no bone for
     pairs = bone_directions(skeleton, theirs, {j: rest[b][:3, 1] for j, b in mapped.items()})
-    for j, (v_ours, v_theirs, reach) in pairs.items():
-        delta[j] = min_rotation(v_theirs, q @ c @ v_ours)
-        if reach is not None:
-            spans[j] = reach
+    for j, pair in pairs.items():
+        delta[j] = min_rotation(pair.theirs, q @ c @ pair.ours)
+        if pair.reach is not None:
+            spans[j] = pair.reach
 
     p, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
     qc = q @ c

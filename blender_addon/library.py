@@ -1,19 +1,20 @@
-"""The motion library from the panel: the chosen Library folder, whether it is built, Build Library's work (the
-core's torch-free `dancenet_core.library.build`, on a worker thread), and the Style menu's styles of a library."""
+"""The motion library from the panel: its source (the Library folder, or the armature actions in this file), whether
+it is built, Build Library's work (rigs sampled in Blender, `rigclips`, a step at a time on the main thread; then the
+core's torch-free `dancenet_core.library.build` on a worker thread), and the Style menu's styles of a library."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 from typing import Any
 
 import bpy
 
 from dancenet_core.errors import DanceNetError
-from dancenet_core.progress import StageProgress
 from dancenet_core.request import DanceRequest
 
+from . import job, rigclips
 from .job import error_message
 from .pipeline import panel_settings
 
@@ -21,6 +22,21 @@ from .pipeline import panel_settings
 def chosen_folder(props: bpy.types.PropertyGroup) -> Path | None:
     """The panel's Library folder, absolute ("//" is beside the .blend), or None for the shipped library."""
     return panel_settings(props)["library"]
+
+
+def _fps(props: bpy.types.PropertyGroup) -> float:
+    render = props.id_data.render
+    return render.fps / render.fps_base
+
+
+def chosen_library(props: bpy.types.PropertyGroup) -> Path | None:
+    """What the library engine dances from: the Library folder, or, with the file's armature actions as the source,
+    where their library is cached (built or not: their content says where), or None for the shipped library."""
+    if props.library_source == "ACTIONS":
+        from dancenet_core.library.store import built_path
+
+        return built_path(rigclips.actions_key(rigclips.file_actions()[0], _fps(props)))
+    return chosen_folder(props)
 
 
 def library_styles(folder: Path | None) -> list[str]:
@@ -56,33 +72,77 @@ def folder_state(folder: Path) -> tuple[str, str]:
     except OSError as e:  # a clip removed or unreadable while the panel draws
         return f"Cannot read the folder: {e.strerror}", "ERROR"
     if not files:
-        return "No BVH clips in it", "ERROR"
+        return "No BVH or FBX clips in it", "ERROR"
     return ("Built", "CHECKMARK") if built else ("Not built yet", "INFO")
 
 
-def summary(library: Any) -> str:
+def actions_state(props: bpy.types.PropertyGroup) -> tuple[str, str]:
+    """What the panel says beside Build Library about the file's armature actions: how many, and whether built."""
+    actions, _notes = rigclips.file_actions()
+    if not actions:
+        return "No action animates a humanoid armature", "ERROR"
+    built = chosen_library(props)
+    count = f"{len(actions)} action{'s' if len(actions) > 1 else ''}"
+    return (f"{count}, built", "CHECKMARK") if built is not None and built.is_file() else (f"{count}, not built yet",
+                                                                                           "INFO")
+
+
+def summary(library: Any, what: str = "file") -> str:
     """Build Library's report: clips, minutes and styles read, and what was left out (with the first reason)."""
     styles = ", ".join(sorted({s for s in library.styles if s})) or "none"
     line = f"Built library: {library.num_clips} clips, {library.duration_s / 60:.1f} min, styles {styles}"
     if library.notes:
-        files = f"{len(library.notes)} file{'s' if len(library.notes) > 1 else ''}"
-        line += f"; left out {files}: {library.notes[0].removeprefix('left out ')}"
+        left = f"{len(library.notes)} {what}{'s' if len(library.notes) > 1 else ''}"
+        line += f"; left out {left}: {library.notes[0].removeprefix('left out ')}"
     return line
 
 
-def build(folder: Path, progress: StageProgress, should_cancel: Callable[[], bool]) -> str:
-    """Build the library of `folder` (or find it built) and say what it holds. Never touches bpy: Build Library
-    runs it on a worker thread (`job.Job`)."""
-    from dancenet_core.library.build import build_library
-
-    library, _path = build_library(folder, progress=progress, should_cancel=should_cancel)
-    return summary(library)
-
-
-def build_now(folder: Path) -> str:
-    """`build` on the calling thread (scripts, background mode, tests); any failure as one line."""
+def _noted(name: str, sample: Callable[[], Any]) -> Any:
+    """A sampled clip, or the one line saying why clip `name` could not be sampled (one the build leaves out)."""
     try:
-        return build(folder, lambda _stage, _fraction: None, lambda: False)
+        return sample()
+    except DanceNetError as e:
+        return f"{name}: {e}"
+    except Exception as e:
+        return f"{name}: {error_message(e, 'Sampling')}"
+
+
+def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
+    """Build Library's job for the panel's source: the rigs to sample in Blender first (a folder's FBX files, the
+    file's actions; none when that content is built already), then the core's build on a worker thread."""
+    from dancenet_core.library.build import build_armature_library, build_library, is_fbx
+    from dancenet_core.library.store import built_path, clip_files, library_path
+
+    if props.library_source == "ACTIONS":
+        actions, notes = rigclips.file_actions()
+        fps = _fps(props)
+        key = rigclips.actions_key(actions, fps)
+        todo = [] if built_path(key).is_file() else actions
+        steps = [(f"sampling {a.name}", partial(_noted, a.name, partial(rigclips.sample_action, a, fps))) for a in todo]
+
+        def from_actions(results: list[Any]) -> job.Work:
+            return lambda progress, should_cancel: summary(build_armature_library(
+                results, key, notes, progress=progress, should_cancel=should_cancel)[0], "action")
+
+        return job.Staged(steps, from_actions, "dancenet-build-library")
+    folder = chosen_folder(props)
+    if folder is None:
+        raise DanceNetError("Choose the Library folder of BVH clips to build (the shipped library needs no build)")
+    fbx = [] if not folder.is_dir() or library_path(folder).is_file() else [f for f in clip_files(folder) if is_fbx(f)]
+    steps = [(f"importing {f.name}", partial(_noted, f.name, partial(rigclips.sample_fbx, f))) for f in fbx]
+
+    def from_folder(results: list[Any]) -> job.Work:
+        sampled = dict(zip(fbx, results, strict=True))
+        return lambda progress, should_cancel: summary(build_library(
+            folder, progress=progress, should_cancel=should_cancel, fbx=sampled)[0])
+
+    return job.Staged(steps, from_folder, "dancenet-build-library")
+
+
+def build_now(props: bpy.types.PropertyGroup) -> str:
+    """Build Library on the calling thread (scripts, background mode, tests); any failure as one line."""
+    try:
+        return build_job(props).run_now()
     except DanceNetError:
         raise
     except Exception as e:

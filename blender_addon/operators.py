@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +76,7 @@ class _Background:
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        self._job.poll()
         if not self._job.done:
             self._show(context, *self._job.progress())
             return {"PASS_THROUGH"}
@@ -151,24 +151,21 @@ class DANCENET_OT_continue(_Generate, bpy.types.Operator):
 
 
 class DANCENET_OT_build_library(_Background, bpy.types.Operator):
-    """Read and analyse the Library folder's BVH clips (in the background; Esc cancels), so that the library engine
-    can dance from them"""
+    """Read and analyse the library's clips: the Library folder's BVH and FBX files, or the armature actions in this
+    file (in the background; Esc cancels), so that the library engine can dance from them"""
 
     bl_idname = "dancenet.build_library"
     bl_label = "Build Library"
     doing = "Library build"
 
-    def plan(self, context: bpy.types.Context) -> Path:
-        """The folder to build, from the panel's Library setting."""
-        folder = library.chosen_folder(context.scene.dancenet)
-        if folder is None:
-            raise DanceNetError("Choose the Library folder of BVH clips to build (the shipped library needs no build)")
-        return folder
+    def plan(self, context: bpy.types.Context) -> job.Staged:
+        """The build of the panel's library source: its rigs to sample in Blender, then the build."""
+        return library.build_job(context.scene.dancenet)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         """The blocking path: scripts and any call without a window to stay responsive in."""
         try:
-            line = library.build_now(self.plan(context))
+            line = library.build_now(context.scene.dancenet)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -176,8 +173,8 @@ class DANCENET_OT_build_library(_Background, bpy.types.Operator):
         self.report({"INFO"}, line)
         return {"FINISHED"}
 
-    def _begin(self, context: bpy.types.Context, folder: Path) -> None:
-        self._start(context, job.Job(partial(library.build, folder), "dancenet-build-library"))
+    def _begin(self, context: bpy.types.Context, build: job.Staged) -> None:
+        self._start(context, build)
 
     def finish(self, context: bpy.types.Context, result: str) -> str:
         return result

@@ -56,12 +56,15 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
 
 
 def _draw_library_build(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) -> None:
-    """Build Library beside what the chosen folder is (not built yet, built, missing); nothing while the folder is
+    """Build Library beside what the chosen source is (not built yet, built, missing); nothing while the folder is
     empty (the shipped library, built)."""
-    folder = library.chosen_folder(props)
-    if folder is None:
-        return
-    text, icon = library.folder_state(folder)
+    if props.library_source == "ACTIONS":
+        text, icon = library.actions_state(props)
+    else:
+        folder = library.chosen_folder(props)
+        if folder is None:
+            return
+        text, icon = library.folder_state(folder)
     row = layout.row(align=True)
     row.operator("dancenet.build_library", icon="FILE_REFRESH")
     row.label(text=text, icon=icon)
@@ -160,9 +163,13 @@ class _Dance(_SubPanel):
         for name, _default, _option in panel_options():  # the request's settings, in its order
             if name == "library" and props.engine != "library":  # a library folder means nothing to DanceNet
                 continue
-            col.prop(props, name)
             if name == "library":
+                col.prop(props, "library_source", text="Source")
+                if props.library_source == "FOLDER":
+                    col.prop(props, name)
                 _draw_library_build(col, props)
+                continue
+            col.prop(props, name)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)
         col.prop(props, "use_part")

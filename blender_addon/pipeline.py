@@ -115,6 +115,8 @@ def prepare(scene: bpy.types.Scene) -> Plan:
     # A style the installed model no longer has reads back as "": fall back to Auto.
     request = DanceRequest(path, **panel_settings(props), style=props.style or "auto", start_s=start_s,
                            end_s=end_s, fps=fps)
+    if request.engine == "library" and props.library_source == "ACTIONS":
+        request = replace(request, library=_actions_library(props))
     request.check()
     if props.target == "EXISTING":
         target = props.armature
@@ -130,6 +132,17 @@ def prepare(scene: bpy.types.Scene) -> Plan:
             raise DanceNetError(f"Root Bone motion needs a bone above the hips; '{hips}' of '{target.name}' has "
                                 "none: choose New Rig (it gets a root bone) or another Root Motion")
     return Plan(request, placement)
+
+
+def _actions_library(props: Any) -> Path:
+    """The built library of the file's armature actions, or a one-line error saying to build it."""
+    from . import library
+
+    built = library.chosen_library(props)
+    if built is None or not built.is_file():
+        raise DanceNetError("The library of this file's armature actions is not built (or they changed since): "
+                            "press Build Library first")
+    return built
 
 
 def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -> Plan:

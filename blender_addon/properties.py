@@ -30,7 +30,7 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
     if self.engine == "library":  # the styles of the library's clips
-        styles = library.library_styles(library.chosen_folder(self))
+        styles = library.library_styles(library.chosen_library(self))
     else:
         styles = pipeline.available_styles()
     for i, style in enumerate(styles, start=1):
@@ -157,6 +157,16 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     take_index: IntProperty(name="Take", get=_get_take_index, set=_set_take_index, options=set(),
                             description="The take that plays: its NLA track is on, the other takes' are muted")
     analysis: StringProperty(options={"HIDDEN"})  # JSON of the last style analysis, kept with the file
+    library_source: EnumProperty(
+        name="Library Source",
+        items=[
+            ("FOLDER", "Folder", "The Library folder's BVH and FBX clips (subfolders or a manifest.csv name styles)"),
+            ("ACTIONS", "Armature Actions in This File", "Every action of this file that animates a humanoid "
+             "armature (style: the action's 'dancenet_style' property, else its name up to the first '_')"),
+        ],
+        default="FOLDER",
+        description="Where the library engine's clips come from",
+    )
 
     def current_song(self, scene: bpy.types.Scene) -> str:
         """The chosen song's absolute path, or "" when none is set (never raises: used while drawing)."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -283,28 +284,58 @@ def _chain_child(skeleton: Skeleton, j: int, mapped: set[int] | dict[int, object
     return child
 
 
+class BonePair(NamedTuple):
+    """A rig's bone against ours at rest: the direction it points in our rest pose (our frame) and at the rig's
+    rest (the rig's frame); the mapped joint it points at (None: along its own axis), and that joint again if the
+    bone reaches it past joints the rig has no bone for (else None)."""
+
+    ours: np.ndarray
+    theirs: np.ndarray
+    child: int | None
+    reach: int | None
+
+
 def bone_directions(skeleton: Skeleton, heads: dict[int, np.ndarray], axes: dict[int, np.ndarray]
-                    ) -> dict[int, tuple[np.ndarray, np.ndarray, int | None]]:
-    """How a rig's rest pose pairs with ours, bone by bone: for each joint the rig has a bone for (`heads`: the
-    bone's rest head, `axes`: its rest axis head -> tail, in the rig's frame), (the bone's direction in our rest
-    pose, in our frame; its direction at the rig's rest; the mapped joint it reaches past joints the rig has no
-    bone for, else None). A bone points at the next mapped joint along its chain that does not start where it
-    does (MMD's upper body starts at its parent); one that ends a chain (the head, a hand without fingers)
-    points along its own axis. Keying a dance onto a rig (the add-on) and reading a rig's clip back
-    (`armature_pose`) turn through the same pairs, so the one undoes the other."""
+                    ) -> dict[int, BonePair]:
+    """How a rig's rest pose pairs with ours, bone by bone, for each joint the rig has a bone for (`heads`: the
+    bone's rest head, `axes`: its rest axis head -> tail, in the rig's frame). A bone points at the next mapped
+    joint along its chain that does not start where it does (MMD's upper body starts at its parent); one that
+    ends a chain (the head, a hand without fingers) points along its own axis. Keying a dance onto a rig (the
+    add-on) and reading a rig's clip back (`armature_pose`) turn through the same pairs, so the one undoes the
+    other."""
     ours = skeleton.rest_positions()
     ours_axis = tail_offsets(skeleton)
-    out: dict[int, tuple[np.ndarray, np.ndarray, int | None]] = {}
+    out: dict[int, BonePair] = {}
     for j in heads:
         first = child = _chain_child(skeleton, j, heads)
         while child is not None and np.linalg.norm(heads[child] - heads[j]) <= 1e-6:
             child = _chain_child(skeleton, child, heads)
         if child is None:
-            out[j] = (ours_axis[j], np.asarray(axes[j], dtype=np.float64), None)
+            out[j] = BonePair(ours_axis[j], np.asarray(axes[j], dtype=np.float64), None, None)
         else:
             reach = child if child == first != direction_child(skeleton, j) else None
-            out[j] = (ours[child] - ours[j], heads[child] - heads[j], reach)
+            out[j] = BonePair(ours[child] - ours[j], heads[child] - heads[j], child, reach)
     return out
+
+
+def rest_turns(skeleton: Skeleton, heads: dict[int, np.ndarray], axes: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """Per joint a rig has a bone for (as `bone_directions` takes them), the turn [3, 3] from our T-pose bone to
+    the rig's rest bone: the smallest that points it the rig's way; at a joint where the body branches (the pelvis,
+    the chest, a hand with fingers), also turned about that direction as the other branches best agree (a rest pose
+    whose chest is twisted, as an FBX file's first frame may be, would otherwise swing the collars around)."""
+    pairs = bone_directions(skeleton, heads, axes)
+    ours = skeleton.rest_positions()
+    turns = {}
+    for j, pair in pairs.items():
+        others = [k for k in heads if k != pair.child and mapped_ancestor(k, heads.keys()) == j
+                  and np.linalg.norm(heads[k] - heads[j]) > 1e-6]
+        if pair.child is None or not others:
+            turns[j] = min_rotation(pair.ours, pair.theirs)
+            continue
+        theirs = [pair.theirs, *(heads[k] - heads[j] for k in others)]
+        mine = [pair.ours, *(ours[k] - ours[j] for k in others)]
+        turns[j] = Rotation.align_vectors(theirs, mine, weights=[np.inf] + [1.0] * len(others))[0].as_matrix()
+    return turns
 
 
 def _unit(m: np.ndarray) -> np.ndarray:
@@ -314,16 +345,16 @@ def _unit(m: np.ndarray) -> np.ndarray:
 
 
 def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: float, name: str) -> SourcePose:
-    """A rig's clip as sampled in Blender, on our terms: `joints` our body joints the rig has bones for, `rest`
+    """A rig's clip as sampled in Blender, on our terms: `joints` our joints the rig has bones for, `rest`
     [K, 4, 4] each one's bone's world rest matrix and `pose` [T, K, 4, 4] its world matrix per frame (Blender's
     bone convention: the head at the translation, the Y axis along the bone; metres, the object's scale included),
     at `fps`. Any up axis and facing (read from the rest pose: the spine is up, the hips say left), any rest pose:
     our joint's world rotation is the bone's turn from its rest, then our T-pose bone turned onto the rig's rest
-    bone (`bone_directions`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose."""
+    bone (`rest_turns`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose."""
     need = [n for n in ("pelvis", "left_hip", "right_hip", "neck") if JOINT_INDEX[n] not in joints]
-    if need or any(j >= BODY_JOINTS for j in joints):
-        raise RetargetError(f"{name}: a rig's clip needs bones for the pelvis, hips and neck, and only our body "
-                            f"joints; missing: {', '.join(need) or 'none'}")
+    if need:
+        raise RetargetError(f"{name}: a rig's clip needs bones for the pelvis, hips and neck; missing: "
+                            f"{', '.join(need)}")
     order = sorted(range(len(joints)), key=lambda k: joints[k])  # parents first
     ours = [joints[k] for k in order]
     rest, pose = np.asarray(rest, dtype=np.float64)[order], np.asarray(pose, dtype=np.float64)[:, order]
@@ -337,8 +368,8 @@ def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: fl
         raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} m tall; a dancer is 0.5-2.5 m (give the "
                             "armature object a scale that makes its bones metres)")
     axes = _unit(rest)[:, :, 1] @ to_ours.T
-    pairs = bone_directions(DEFAULT_SKELETON, {j: rest_heads[k] for k, j in enumerate(ours)},
-                            {j: axes[k] for k, j in enumerate(ours)})
-    turns = np.stack([min_rotation(pairs[j][0], pairs[j][1]) for j in ours])
+    turn = rest_turns(DEFAULT_SKELETON, {j: rest_heads[k] for k, j in enumerate(ours)},
+                      {j: axes[k] for k, j in enumerate(ours)})
+    turns = np.stack([turn[j] for j in ours])
     from_rest = to_ours @ _unit(pose) @ np.swapaxes(_unit(rest), -1, -2) @ to_ours.T
     return SourcePose(ours, pose[..., :3, 3] @ to_ours.T, from_rest @ turns, rest_heads, fps, turns)

@@ -21,7 +21,6 @@ Torch-free and without the data package (the add-on's Build Library runs it insi
 from __future__ import annotations
 
 import csv
-import hashlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -39,7 +38,7 @@ from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
 from .analysis import analyze_clip
-from .store import LIBRARY_FPS, LIBRARY_VERSION, MotionLibrary, built_path, clip_files, library_path
+from .store import LIBRARY_FPS, MotionLibrary, built_path, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
 DANCER_HEIGHT_M = 1.7  # the unit of a CMU clip is the one that makes its rest pose nearest this tall
@@ -96,7 +95,7 @@ def _as_clip(motion: Motion, name: str) -> Motion:
 
 @dataclass
 class ArmatureClip:
-    """A rig's animation as the add-on samples it in Blender: our body joints the rig has bones for (`joints`),
+    """A rig's animation as the add-on samples it in Blender: our joints the rig has bones for (`joints`),
     each one's bone's world rest matrix [K, 4, 4] (`rest`) and world matrix per frame [T, K, 4, 4] (`pose`), at
     `fps`; see `jointmap.armature_pose`. `name` and `style` are the clip's in the library."""
 
@@ -149,7 +148,8 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
                   fbx: Mapping[Path, ArmatureClip | str] | None = None) -> tuple[MotionLibrary, Path]:
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
-    written). `fbx`: the folder's FBX files as Blender sampled them (or why it could not, one line each);
+    written). `fbx`: the folder's FBX files as Blender sampled them (or why it could not, one line each that
+    names the file);
     without it a folder with FBX files is answered in one line (only Blender reads them)."""
     folder = Path(folder)
     if not folder.is_dir():
@@ -181,14 +181,15 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
             continue
         clips.append((str(f.relative_to(folder)), styles[f], motion, analyze_clip(motion, styles[f])))
     if not clips:
-        raise DanceNetError(f"none of the {len(files)} BVH clips in {folder} could be read: {notes[0]}")
+        first = notes[0].removeprefix("left out ")
+        raise DanceNetError(f"none of the {len(files)} clips in {folder} could be read: {first}")
     return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
 
 
 def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
     """An FBX file's clip from what Blender sampled of it."""
     if not isinstance(sampled, ArmatureClip):
-        raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
+        raise DanceNetError(sampled or f"{path.name}: not sampled in Blender")
     return armature_motion(sampled)
 
 
@@ -198,34 +199,27 @@ def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
     return library
 
 
-def clips_key(clips: Sequence[ArmatureClip]) -> str:
-    """A digest of sampled clips (names, styles, joints, rest and pose matrices, rates): where their library is
-    cached."""
-    h = hashlib.sha256(LIBRARY_VERSION.encode())
-    for c in clips:
-        h.update(f"{c.name}\0{c.style}\0{c.joints}\0{c.fps!r}\0".encode())
-        h.update(np.ascontiguousarray(c.rest, dtype=np.float64).tobytes())
-        h.update(np.ascontiguousarray(c.pose, dtype=np.float64).tobytes())
-    return "clips-" + h.hexdigest()[:32]
-
-
-def build_armature_library(clips: Sequence[ArmatureClip], notes: Sequence[str] = (), force: bool = False,
-                           report: Callable[[str], object] = print, progress: StageProgress | None = None,
+def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes: Sequence[str] = (),
+                           force: bool = False, report: Callable[[str], object] = print,
+                           progress: StageProgress | None = None,
                            should_cancel: Callable[[], bool] | None = None) -> tuple[MotionLibrary, Path]:
-    """A library of rigs' clips (the add-on's \"Armature actions in this file\"), cached by their content
-    (`clips_key`); `notes` are what the sampling already left out, one line each. As `build_library` otherwise."""
-    if not clips:
-        raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
-    path = built_path(clips_key(clips))
+    """A library of rigs' clips (the add-on's "Armature actions in this file"), cached as `key` (a digest of
+    what the clips were sampled from: `store.built_path`): each clip as sampled, or the line saying why it could
+    not be; `notes` are what was no clip to begin with, one line each. As `build_library` otherwise."""
+    path = built_path(key)
     if (library := cached(path, force, report)) is not None:
         return library, path
+    if not clips:
+        raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
     done, left = [], [f"left out {n}" for n in notes]
     for i, c in enumerate(clips):
         if should_cancel is not None and should_cancel():
             raise GenerationCancelled
         if progress is not None:
-            progress(f"reading {c.name}", i / len(clips))
+            progress(f"reading {getattr(c, 'name', 'a clip')}", i / len(clips))
         try:
+            if isinstance(c, str):
+                raise DanceNetError(c)
             motion = armature_motion(c)
         except DanceNetError as e:
             left.append(f"left out {first_line(e)}")
@@ -233,5 +227,6 @@ def build_armature_library(clips: Sequence[ArmatureClip], notes: Sequence[str] =
             continue
         done.append((c.name, c.style, motion, analyze_clip(motion, c.style)))
     if not done:
-        raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
+        first = left[len(notes)].removeprefix("left out ")
+        raise DanceNetError(f"none of the {len(clips)} actions could be read: {first}")
     return _saved(MotionLibrary.from_clips(done, tuple(left)), path), path

@@ -232,7 +232,7 @@ def test_build_library_in_the_background_reports_one_line(scene, addon, own_cach
     folder = _two_clips(tmp_path / "clips")
     scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
     op = modal_stand_in(addon.operators.DANCENET_OT_build_library)
-    op._begin(bpy.context, folder)
+    op._begin(bpy.context, addon.library.build_job(scene.dancenet))
     runtime = bpy.context.window_manager.dancenet
     assert runtime.running and not bpy.ops.dancenet.generate.poll()  # one job at a time
     op._job.join(120)
@@ -246,9 +246,11 @@ def test_build_library_cancelled_with_esc_writes_nothing(scene, addon, own_cache
     from blender_addon import warming
 
     folder = _two_clips(tmp_path / "clips")
+    scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
     op = modal_stand_in(addon.operators.DANCENET_OT_build_library)
     with warming.LOCK:  # the worker waits for the lock, so Esc comes before its first clip
-        op._begin(bpy.context, folder)
+        op._begin(bpy.context, addon.library.build_job(scene.dancenet))
+        op._job.poll()  # no FBX to sample: the worker starts
         assert op.modal(bpy.context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     op._job.join(60)
     assert isinstance(op._job.error, GenerationCancelled)
@@ -268,7 +270,7 @@ def _not_a_dancer(folder: Path) -> None:
 @pytest.mark.parametrize(("folder", "message"), [
     ("missing", "motion library folder not found: "),
     ("empty", "no BVH clips in "),
-    ("unreadable", "none of the 2 BVH clips in "),
+    ("unreadable", "none of the 2 clips in "),
 ])  # fmt: skip
 def test_a_bad_folder_to_build_is_one_line_and_the_users_actions_kept(scene, addon, own_cache, tmp_path, folder,
                                                                        message):
@@ -280,7 +282,7 @@ def test_a_bad_folder_to_build_is_one_line_and_the_users_actions_kept(scene, add
     rig = addon.rig.create_rig(bpy.context, with_mesh=False)
     rig.animation_data_create().action = bpy.data.actions.new("user's own")
     scene.dancenet.target, scene.dancenet.armature = "EXISTING", rig
-    state = {"missing": ("Folder not found", "ERROR"), "empty": ("No BVH clips in it", "ERROR"),
+    state = {"missing": ("Folder not found", "ERROR"), "empty": ("No BVH or FBX clips in it", "ERROR"),
              "unreadable": ("Not built yet", "INFO")}[folder]
     assert _library_row(scene, path)[1] == state
     before = snapshot(scene)

@@ -1,0 +1,251 @@
+"""Motion-library clips from rigs (issue 25): an FBX file of the Library folder, or an action of the open file that
+animates a humanoid armature, sampled bone by bone as Blender evaluates it (constraints and drivers included) into
+the core's `ArmatureClip`, which `dancenet_core.library.build` reads onto our skeleton whatever the rig's rest pose.
+
+Each clip is sampled in a scene of its own that Blender shows nowhere: an FBX file is imported into it, an action
+plays on a copy of its armature there. Everything made for it is removed after, so the user's objects, actions,
+scenes and data blocks stay as they were, and so does the scene's frame. Main thread only (bpy).
+
+An action of the file becomes a clip when its bone channels belong to an armature that Auto's bone map reads as a
+humanoid (DanceNet's own takes are not clips: they are dances made from the library, not capture). Its style is the
+action's custom property `dancenet_style` if set, else its name up to the first "_" ("salsa_basic" is salsa; a
+name without "_" has no style).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import bpy
+import numpy as np
+
+from dancenet_core.errors import DanceNetError
+from dancenet_core.skeleton import JOINT_INDEX
+
+from . import bonemap, rigchoice, takes
+from .rigdef import REQUIRED_JOINTS
+from .vrmhumanoid import humanoid_map
+
+if TYPE_CHECKING:  # the library's build code is loaded when a library is built, not with the add-on
+    from dancenet_core.library.build import ArmatureClip
+
+STYLE_PROP = "dancenet_style"
+_BONE_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]')
+
+
+def _ids() -> list[bpy.types.ID]:
+    """Every data block of the file (objects, meshes, images, scenes, ...; not the window manager and screens)."""
+    out = []
+    for kind in dir(bpy.data):
+        coll = getattr(bpy.data, kind, None)
+        if isinstance(coll, bpy.types.bpy_prop_collection) and kind not in ("window_managers", "workspaces", "screens"):
+            out += [i for i in coll if isinstance(i, bpy.types.ID)]
+    return out
+
+
+@contextmanager
+def scratch_scene() -> Iterator[bpy.types.Scene]:
+    """A scene of its own to import and play clips in, the window's while it lives (Blender's importers and its
+    evaluation work on the window's scene); then the window's scene is the user's again, and the scene and every
+    data block made while it lived are removed, whatever happens."""
+    before = {i.as_pointer() for i in _ids()}
+    window = bpy.context.window
+    shown = window.scene if window is not None else None
+    scene = bpy.data.scenes.new("DanceNet library clip")
+    try:
+        if window is not None:
+            window.scene = scene
+        with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+            yield scene
+    finally:
+        if window is not None:
+            window.scene = shown
+        bpy.data.batch_remove([i for i in _ids() if i.as_pointer() not in before])
+
+
+def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
+    """Our joint index -> the rig's bone, by Auto's bone map; a one-line DanceNetError for an armature no bone map
+    reads as a humanoid."""
+    try:
+        mapping, _ = rigchoice.resolve_map(rig, None)
+    except DanceNetError as e:
+        auto = bonemap.auto(rigchoice.rest_bones(rig), rig.name, rigchoice.saved_maps_dir(), humanoid_map(rig.data))
+        found = bonemap.match(auto, rig.data.bones.keys())[0]
+        missing = [j.replace("_", " ") for j in REQUIRED_JOINTS if j not in found]
+        more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+        raise DanceNetError(f"armature '{rig.name}' is not a humanoid: Auto's bone map finds no bone for "
+                            f"{', '.join(missing[:3])}{more}") from e
+    return {JOINT_INDEX[j]: b for j, b in mapping.items()}
+
+
+def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, frames: range, name: str, style: str,
+            fps: float) -> ArmatureClip:
+    """The mapped bones' world matrices of `rig` (in `scene`) at each of `frames`, as Blender evaluates them."""
+    from dancenet_core.library.build import ArmatureClip
+
+    joints = humanoid_joints(rig)
+    order = sorted(joints)
+    bones = rig.pose.bones
+    index = [bones.find(joints[j]) for j in order]
+    rest = np.array([np.array(rig.data.bones[joints[j]].matrix_local) for j in order])
+    buf = np.empty(len(bones) * 16, dtype=np.float32)
+    pose = np.empty((len(frames), len(order), 4, 4))
+    for t, frame in enumerate(frames):
+        scene.frame_set(frame)
+        evaluated = rig.evaluated_get(scene.view_layers[0].depsgraph)
+        evaluated.pose.bones.foreach_get("matrix", buf)
+        world = np.array(evaluated.matrix_world)
+        if t == 0:  # the rest pose where the object is as the clip starts
+            rest = world @ rest
+        pose[t] = world @ np.swapaxes(buf.reshape(-1, 4, 4)[index], 1, 2)  # Blender lays matrices out by column
+    return ArmatureClip(name, style, order, rest, pose, fps)
+
+
+def _frames(action: bpy.types.Action) -> range:
+    first, last = action.frame_range
+    return range(math.floor(first), math.ceil(last) + 1)
+
+
+def _fps(scene: bpy.types.Scene) -> float:
+    return scene.render.fps / scene.render.fps_base
+
+
+def sample_fbx(path: Path) -> ArmatureClip:
+    """An FBX file's clip: its armature's animation (the first take), imported into a scene of its own and removed
+    again; a one-line DanceNetError when it holds none a library can use."""
+    if not hasattr(bpy.ops.import_scene, "fbx"):
+        raise DanceNetError("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
+    with scratch_scene() as scene:
+        try:
+            bpy.ops.import_scene.fbx(filepath=str(path))
+        except RuntimeError as e:  # the importer's traceback: its last line says what
+            raise DanceNetError(f"Blender could not import it ({str(e).strip().splitlines()[-1][:160]})") from e
+        rigs = [o for o in scene.objects if o.type == "ARMATURE"]
+        if not rigs:
+            raise DanceNetError("no armature in it")
+        animated = [o for o in rigs if o.animation_data is not None and o.animation_data.action is not None]
+        if not animated:
+            raise DanceNetError(f"its armature '{rigs[0].name}' has no animation")
+        rig = animated[0]
+        return _sample(rig, scene, _frames(rig.animation_data.action), path.name, "", _fps(scene))
+
+
+@dataclass(frozen=True)
+class FileAction:
+    """An action of the file (with its slot, where actions have slots) that animates a humanoid armature."""
+
+    action: str
+    slot: str | None
+    armature: str
+    style: str
+
+    @property
+    def name(self) -> str:
+        return self.action
+
+
+def _channels(action: bpy.types.Action) -> list[tuple[bpy.types.ActionSlot | None, list[bpy.types.FCurve]]]:
+    """(slot, its F-curves) of an action; one (None, F-curves) for an action without slots (Blender before 4.4)."""
+    if not hasattr(action, "slots"):
+        return [(None, list(action.fcurves))]
+    out = []
+    for slot in action.slots:
+        curves = [fc for layer in action.layers for strip in layer.strips
+                  if (bag := strip.channelbag(slot)) is not None for fc in bag.fcurves]
+        out.append((slot, curves))
+    return out
+
+
+def _bones_of(curves: list[bpy.types.FCurve]) -> set[str]:
+    names = set()
+    for fc in curves:
+        if m := _BONE_PATH.match(fc.data_path):
+            names.add(m[1].replace('\\"', '"').replace("\\\\", "\\"))
+    return names
+
+
+def style_of(action: bpy.types.Action) -> str:
+    """The clip's style: the action's `dancenet_style` property, else its name up to the first "_" (else none)."""
+    own = action.get(STYLE_PROP)
+    if isinstance(own, str) and own.strip():
+        return own.strip()
+    return action.name.split("_", 1)[0] if "_" in action.name else ""
+
+
+def file_actions() -> tuple[list[FileAction], list[str]]:
+    """The file's actions that animate a humanoid armature, and one line per action that animates bones but cannot
+    be a clip (its armature is gone, or is no humanoid)."""
+    rigs = sorted((o for o in bpy.data.objects if o.type == "ARMATURE"), key=lambda o: o.name)
+    humanoid: dict[str, str | None] = {}  # armature object -> None, or why it is no humanoid
+    found, notes = [], []
+    for action in sorted(bpy.data.actions, key=lambda a: a.name):
+        if action.get(takes.ACTION_PROP):
+            continue
+        for slot, curves in _channels(action):
+            bones = _bones_of(curves)
+            if not bones:
+                continue  # an object's, a camera's, a shape key's animation: no dance
+            rig = max(rigs, key=lambda o: len(bones.intersection(o.data.bones.keys())), default=None)
+            if rig is None or 2 * len(bones.intersection(rig.data.bones.keys())) < len(bones):
+                notes.append(f"{action.name}: no armature in this file has its bones")
+                continue
+            if rig.name not in humanoid:
+                try:
+                    humanoid_joints(rig)
+                    humanoid[rig.name] = None
+                except DanceNetError as e:
+                    humanoid[rig.name] = str(e)
+            if humanoid[rig.name] is not None:
+                notes.append(f"{action.name}: {humanoid[rig.name]}")
+                continue
+            found.append(FileAction(action.name, slot.identifier if slot is not None else None, rig.name,
+                                    style_of(action)))
+    return found, notes
+
+
+def actions_key(actions: list[FileAction], fps: float) -> str:
+    """A digest of what the file's actions would make a library of, read without playing them: each action's
+    keys, its armature's rest pose, place and bone map, its style, and the scene's frame rate. (A change only to a
+    rig's constraints or drivers is not seen: build again by hand.)"""
+    h = hashlib.sha256(f"{fps!r}".encode())
+    for item in actions:
+        action, rig = bpy.data.actions[item.action], bpy.data.objects[item.armature]
+        h.update(f"{item}\0".encode())
+        for slot, curves in _channels(action):
+            if slot is not None and slot.identifier != item.slot:
+                continue
+            for fc in curves:
+                co = np.empty(2 * len(fc.keyframe_points), dtype=np.float32)
+                fc.keyframe_points.foreach_get("co", co)
+                h.update(f"{fc.data_path}[{fc.array_index}]".encode() + co.tobytes())
+        h.update(np.array(rig.matrix_world, dtype=np.float64).tobytes())
+        h.update(np.array([np.array(b.matrix_local) for b in rig.data.bones], dtype=np.float64).tobytes())
+        h.update(repr(sorted(humanoid_joints(rig).items())).encode())
+    return "actions-" + h.hexdigest()[:32]
+
+
+def sample_action(item: FileAction, fps: float) -> ArmatureClip:
+    """The clip of a file action: played on a copy of its armature in a scene of its own (the armature, the action
+    and the user's scene untouched), at the file's frame rate `fps`."""
+    action, rig = bpy.data.actions.get(item.action), bpy.data.objects.get(item.armature)
+    if action is None or rig is None:
+        raise DanceNetError(f"it or its armature '{item.armature}' is gone")
+    with scratch_scene() as scene:
+        copy = rig.copy()
+        copy.parent = None
+        copy.matrix_world = rig.matrix_world.copy()
+        scene.collection.objects.link(copy)
+        anim = copy.animation_data or copy.animation_data_create()
+        for track in list(anim.nla_tracks):
+            anim.nla_tracks.remove(track)
+        anim.action = action
+        if item.slot is not None:
+            anim.action_slot = next(s for s in action.slots if s.identifier == item.slot)
+        return _sample(copy, scene, _frames(action), item.action, item.style, fps)
