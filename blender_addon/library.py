@@ -29,13 +29,23 @@ def _fps(props: bpy.types.PropertyGroup) -> float:
     return render.fps / render.fps_base
 
 
-def chosen_library(props: bpy.types.PropertyGroup) -> Path | None:
+@lru_cache(maxsize=4)
+def _drawn_key(signature: tuple) -> str:
+    """The actions' content key for the panel: read again only when their quick signature changes."""
+    fps, actions, _counts = signature
+    return rigclips.actions_key(list(actions), fps)
+
+
+def chosen_library(props: bpy.types.PropertyGroup, drawn: bool = False) -> Path | None:
     """What the library engine dances from: the Library folder, or, with the file's armature actions as the source,
-    where their library is cached (built or not: their content says where), or None for the shipped library."""
+    where their library is cached (built or not: their content says where), or None for the shipped library.
+    `drawn` (the panel, the Style menu): the actions' key as last read while their quick signature is the same."""
     if props.library_source == "ACTIONS":
         from dancenet_core.library.store import built_path
 
-        return built_path(rigclips.actions_key(rigclips.file_actions()[0], _fps(props)))
+        actions, fps = rigclips.file_actions()[0], _fps(props)
+        key = _drawn_key(rigclips.actions_signature(actions, fps)) if drawn else rigclips.actions_key(actions, fps)
+        return built_path(key)
     return chosen_folder(props)
 
 
@@ -81,7 +91,7 @@ def actions_state(props: bpy.types.PropertyGroup) -> tuple[str, str]:
     actions, _notes = rigclips.file_actions()
     if not actions:
         return "No action animates a humanoid armature", "ERROR"
-    built = chosen_library(props)
+    built = chosen_library(props, drawn=True)
     count = f"{len(actions)} action{'s' if len(actions) > 1 else ''}"
     return (f"{count}, built", "CHECKMARK") if built is not None and built.is_file() else (f"{count}, not built yet",
                                                                                            "INFO")

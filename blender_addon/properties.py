@@ -30,7 +30,7 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
     if self.engine == "library":  # the styles of the library's clips
-        styles = library.library_styles(library.chosen_library(self))
+        styles = library.library_styles(library.chosen_library(self, drawn=True))
     else:
         styles = pipeline.available_styles()
     for i, style in enumerate(styles, start=1):

@@ -85,12 +85,12 @@ def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
     return {JOINT_INDEX[j]: b for j, b in mapping.items()}
 
 
-def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, frames: range, name: str, style: str,
-            fps: float) -> ArmatureClip:
-    """The mapped bones' world matrices of `rig` (in `scene`) at each of `frames`, as Blender evaluates them."""
+def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str], frames: range, name: str,
+            style: str, fps: float) -> ArmatureClip:
+    """The world matrices of `rig`'s bones for our `joints` (in `scene`) at each of `frames`, as Blender evaluates
+    them."""
     from dancenet_core.library.build import ArmatureClip
 
-    joints = humanoid_joints(rig)
     order = sorted(joints)
     bones = rig.pose.bones
     index = [bones.find(joints[j]) for j in order]
@@ -134,7 +134,8 @@ def sample_fbx(path: Path) -> ArmatureClip:
         if not animated:
             raise DanceNetError(f"its armature '{rigs[0].name}' has no animation")
         rig = animated[0]
-        return _sample(rig, scene, _frames(rig.animation_data.action), path.name, "", _fps(scene))
+        return _sample(rig, scene, humanoid_joints(rig), _frames(rig.animation_data.action), path.name, "",
+                       _fps(scene))
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,7 @@ class FileAction:
     slot: str | None
     armature: str
     style: str
+    joints: tuple[tuple[int, str], ...]  # our joint -> the armature's bone, by Auto's bone map
 
     @property
     def name(self) -> str:
@@ -183,7 +185,7 @@ def file_actions() -> tuple[list[FileAction], list[str]]:
     """The file's actions that animate a humanoid armature, and one line per action that animates bones but cannot
     be a clip (its armature is gone, or is no humanoid)."""
     rigs = sorted((o for o in bpy.data.objects if o.type == "ARMATURE"), key=lambda o: o.name)
-    humanoid: dict[str, str | None] = {}  # armature object -> None, or why it is no humanoid
+    humanoid: dict[str, dict[int, str] | str] = {}  # armature object -> its joints' bones, or why it is no humanoid
     found, notes = [], []
     for action in sorted(bpy.data.actions, key=lambda a: a.name):
         if action.get(takes.ACTION_PROP):
@@ -198,22 +200,22 @@ def file_actions() -> tuple[list[FileAction], list[str]]:
                 continue
             if rig.name not in humanoid:
                 try:
-                    humanoid_joints(rig)
-                    humanoid[rig.name] = None
+                    humanoid[rig.name] = humanoid_joints(rig)
                 except DanceNetError as e:
                     humanoid[rig.name] = str(e)
-            if humanoid[rig.name] is not None:
-                notes.append(f"{action.name}: {humanoid[rig.name]}")
+            joints = humanoid[rig.name]
+            if isinstance(joints, str):
+                notes.append(f"{action.name}: {joints}")
                 continue
             found.append(FileAction(action.name, slot.identifier if slot is not None else None, rig.name,
-                                    style_of(action)))
+                                    style_of(action), tuple(sorted(joints.items()))))
     return found, notes
 
 
 def actions_key(actions: list[FileAction], fps: float) -> str:
     """A digest of what the file's actions would make a library of, read without playing them: each action's
-    keys, its armature's rest pose, place and bone map, its style, and the scene's frame rate. (A change only to a
-    rig's constraints or drivers is not seen: build again by hand.)"""
+    keys, its armature's rest pose, place and bone map (`FileAction.joints`), its style, and the scene's frame rate.
+    (A change only to a rig's constraints or drivers is not seen: build again by hand.)"""
     h = hashlib.sha256(f"{fps!r}".encode())
     for item in actions:
         action, rig = bpy.data.actions[item.action], bpy.data.objects[item.armature]
@@ -222,13 +224,27 @@ def actions_key(actions: list[FileAction], fps: float) -> str:
             if slot is not None and slot.identifier != item.slot:
                 continue
             for fc in curves:
-                co = np.empty(2 * len(fc.keyframe_points), dtype=np.float32)
-                fc.keyframe_points.foreach_get("co", co)
-                h.update(f"{fc.data_path}[{fc.array_index}]".encode() + co.tobytes())
+                h.update(f"{fc.data_path}[{fc.array_index}]".encode())
+                for field in ("co", "handle_left", "handle_right"):
+                    values = np.empty(2 * len(fc.keyframe_points), dtype=np.float32)
+                    fc.keyframe_points.foreach_get(field, values)
+                    h.update(values.tobytes())
         h.update(np.array(rig.matrix_world, dtype=np.float64).tobytes())
         h.update(np.array([np.array(b.matrix_local) for b in rig.data.bones], dtype=np.float64).tobytes())
-        h.update(repr(sorted(humanoid_joints(rig).items())).encode())
     return "actions-" + h.hexdigest()[:32]
+
+
+def actions_signature(actions: list[FileAction], fps: float) -> tuple:
+    """What changes with almost any edit of the actions, quick to read (no key's value): their names, armatures,
+    bone maps and styles, and each channel's count of keys; what the panel, drawn often, tells a built library by
+    (`actions_key` reads every key)."""
+    counts = []
+    for item in actions:
+        action = bpy.data.actions[item.action]
+        for slot, curves in _channels(action):
+            if slot is None or slot.identifier == item.slot:
+                counts.append(tuple(len(fc.keyframe_points) for fc in curves))
+    return fps, tuple(actions), tuple(counts)
 
 
 def sample_action(item: FileAction, fps: float) -> ArmatureClip:
@@ -248,4 +264,4 @@ def sample_action(item: FileAction, fps: float) -> ArmatureClip:
         anim.action = action
         if item.slot is not None:
             anim.action_slot = next(s for s in action.slots if s.identifier == item.slot)
-        return _sample(copy, scene, _frames(action), item.action, item.style, fps)
+        return _sample(copy, scene, dict(item.joints), _frames(action), item.action, item.style, fps)
