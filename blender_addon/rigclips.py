@@ -125,8 +125,9 @@ def sample_fbx(path: Path) -> ArmatureClip:
     with scratch_scene() as scene:
         try:
             bpy.ops.import_scene.fbx(filepath=str(path))
-        except RuntimeError as e:  # the importer's traceback: its last line says what
-            raise DanceNetError(f"Blender could not import it ({str(e).strip().splitlines()[-1][:160]})") from e
+        except RuntimeError as e:  # an error, or the importer's traceback: its last line says what
+            why = str(e).strip().splitlines()[-1].removeprefix("Error: ")[:160]
+            raise DanceNetError(f"Blender could not import it ({why})") from e
         rigs = [o for o in scene.objects if o.type == "ARMATURE"]
         if not rigs:
             raise DanceNetError("no armature in it")

@@ -260,6 +260,10 @@ def test_bad_actions_and_files_are_one_line(scene, addon, own_cache, tmp_path):
     write_bvh(folder / "clip.bvh", _dance(12.0))
     assert bpy.ops.dancenet.build_library() == {"FINISHED"}
     assert MotionLibrary.load(library_path(folder)).notes == ("left out Cube.fbx: no armature in it",)
+    (folder / "broken.fbx").write_text("these are my notes, not an FBX file\n")
+    assert bpy.ops.dancenet.build_library() == {"FINISHED"}
+    broken = MotionLibrary.load(library_path(folder)).notes[1]
+    assert broken.startswith("left out broken.fbx: Blender could not import it (") and "\n" not in broken, broken
     assert _data_counts() == counts
 
 
