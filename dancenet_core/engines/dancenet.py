@@ -81,6 +81,21 @@ def finish_frames(bundle: Bundle, frames: np.ndarray, smoothing: float = OUTPUT_
     return feats
 
 
+def scale_moves(feats: np.ndarray, layout: FeatureLayout, scale: float) -> np.ndarray:
+    """The dance's moves `scale` times as large (the energy preset, `DanceRequest.move_scale`): each joint's
+    rotation, the root's height and tilt and the end effectors about the take's mean, the root's steps and turns
+    about zero; contacts as predicted. Before the foot model, which then cleans the feet of the scaled dance."""
+    if scale == 1.0:
+        return feats
+    out = feats.copy()
+    root = layout.root.start
+    about_mean = np.r_[[root + 1, root + 4, root + 5], np.arange(layout.rotations.start, layout.end_effectors.stop)]
+    mean = out[:, about_mean].mean(axis=0)
+    out[:, about_mean] = mean + scale * (out[:, about_mean] - mean)
+    out[:, [root, root + 2, root + 3]] *= scale
+    return out
+
+
 def kept_frames(bundle: Bundle, kept: Motion, at_s: float, frames: int) -> np.ndarray:
     """The dance kept up to `at_s` seconds as the model's normalised frames [K, D] at its frame rate, or a
     one-line error when there is not enough of it before `at_s`, or of the song after."""
@@ -150,6 +165,7 @@ class DanceNetEngine:
         timings["generation_s"] = time.perf_counter() - t
 
         layout = FeatureLayout.for_skeleton(bundle.skeleton)
+        takes_feats = [scale_moves(f, layout, request.move_scale) for f in takes_feats]
         if request.footfix:
             t = time.perf_counter()
             progress("cleaning feet", 0.0)
