@@ -37,7 +37,7 @@ from ..motion import Motion
 from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
-from .analysis import analyze_clip
+from .analysis import ClipAnalysis, analyze_clip
 from .store import LIBRARY_FPS, MotionLibrary, built_path, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
@@ -167,19 +167,10 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
                             f"({fbx_files[0].name}...), which only Blender reads: build this folder with Build "
                             "Library in the DanceNet add-on's panel")
     styles = clip_styles(folder, files)
-    clips, notes = [], []
-    for i, f in enumerate(files):
-        if should_cancel is not None and should_cancel():
-            raise GenerationCancelled
-        if progress is not None:
-            progress(f"reading {f.name}", i / len(files))
-        try:
-            motion = _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)
-        except DanceNetError as e:
-            notes.append(f"left out {first_line(e)}")
-            report(notes[-1])
-            continue
-        clips.append((str(f.relative_to(folder)), styles[f], motion, analyze_clip(motion, styles[f])))
+    clips, notes = _read_clips(
+        [(f.name, str(f.relative_to(folder)), styles[f],
+          lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)) for f in files],
+        report, progress, should_cancel)
     if not clips:
         first = notes[0].removeprefix("left out ")
         raise DanceNetError(f"none of the {len(files)} clips in {folder} could be read: {first}")
@@ -211,22 +202,36 @@ def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes:
         return library, path
     if not clips:
         raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
-    done, left = [], [f"left out {n}" for n in notes]
-    for i, c in enumerate(clips):
+    done, left = _read_clips(
+        [("a clip", c, "", lambda c=c: _not_sampled(c)) if isinstance(c, str)
+         else (c.name, c.name, c.style, lambda c=c: armature_motion(c)) for c in clips],
+        report, progress, should_cancel)
+    if not done:
+        raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
+    return _saved(MotionLibrary.from_clips(done, tuple([f"left out {n}" for n in notes] + left)), path), path
+
+
+def _not_sampled(why: str) -> Motion:
+    """A clip Blender could not sample: the line it gave."""
+    raise DanceNetError(why)
+
+
+def _read_clips(items: Sequence[tuple[str, str, str, Callable[[], Motion]]], report: Callable[[str], object],
+                progress: StageProgress | None, should_cancel: Callable[[], bool] | None
+                ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
+    """Each (shown name, clip name, style, read) read and analysed in turn, between cancel checks: the clips, and a
+    "left out ..." line (also reported) for each that could not be read."""
+    clips, notes = [], []
+    for i, (shown, name, style, read) in enumerate(items):
         if should_cancel is not None and should_cancel():
             raise GenerationCancelled
         if progress is not None:
-            progress(f"reading {getattr(c, 'name', 'a clip')}", i / len(clips))
+            progress(f"reading {shown}", i / len(items))
         try:
-            if isinstance(c, str):
-                raise DanceNetError(c)
-            motion = armature_motion(c)
+            motion = read()
         except DanceNetError as e:
-            left.append(f"left out {first_line(e)}")
-            report(left[-1])
+            notes.append(f"left out {first_line(e)}")
+            report(notes[-1])
             continue
-        done.append((c.name, c.style, motion, analyze_clip(motion, c.style)))
-    if not done:
-        first = left[len(notes)].removeprefix("left out ")
-        raise DanceNetError(f"none of the {len(clips)} actions could be read: {first}")
-    return _saved(MotionLibrary.from_clips(done, tuple(left)), path), path
+        clips.append((name, style, motion, analyze_clip(motion, style)))
+    return clips, notes
