@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -252,3 +254,29 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
     assert (a[:, 2] <= 0.02).all(), a[:, 2]
     assert (a[:, 3] >= 0.75 * b[:, 3]).all(), (b[:, 3], a[:, 3])
     assert (a[:, 4] <= np.maximum(b[:, 4], FREEZE_S)).all(), (b[:, 4], a[:, 4])
+
+
+def test_a_runs_foot_model_is_trained_and_validated_by_path(tmp_path: Path) -> None:
+    """`dancenet train footfix --dancenet W` learns on the dances of the weights given, and `dancenet validate
+    --footfix NPZ` dances with the foot model given: the options reach the code, and a foot model read from another
+    path is that file's (a missing one is one line naming it)."""
+    import shutil
+
+    from dancenet_core.cli import build_parser
+    from dancenet_core.engines.dancenet import foot_fixer
+    from dancenet_core.runtime.weights import FOOTFIX_RUNTIME
+    from dancenet_core.training.configs import FootfixSettings, from_args
+
+    argv = ["train", "footfix", "--dancenet", "runs/a/dancenet.pt", "--out", "runs/a_ff/footfix.pt"]
+    assert from_args(FootfixSettings, build_parser(argv).parse_args(argv)).dancenet == Path("runs/a/dancenet.pt")
+    argv = ["validate", "runs/a/dancenet.pt", "--footfix", "runs/a_ff/footfix.npz"]
+    assert build_parser(argv).parse_args(argv).footfix == Path("runs/a_ff/footfix.npz")
+
+    with pytest.raises(DanceNetError, match="missing.npz"):
+        foot_fixer(tmp_path / "missing.npz")
+    copy = tmp_path / "footfix.npz"
+    shutil.copy(FOOTFIX_RUNTIME, copy)
+    theirs, shipped = foot_fixer(copy), foot_fixer()
+    assert theirs is not shipped
+    feats = encode(_swaying(1, 4)[0])
+    np.testing.assert_array_equal(theirs(feats), shipped(feats))
