@@ -311,6 +311,6 @@ def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, gr
             runs.append((1, song[-1] - song[0]))
     total = max(end_s - start_s, 1e-9)
     longest = max(runs, key=lambda r: r[1])
-    return Report(rows, rendered.cuts, rendered.blends, cut_steps(rendered, library.step_p99),
+    return Report(rows, rendered.cuts, rendered.blends, cut_steps(rendered),
                   float(sum(s for b, s in runs if b > LONG_RUN_BARS) / total), int(longest[0]), float(longest[1]),
                   warp)

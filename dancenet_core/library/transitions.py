@@ -92,13 +92,14 @@ def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) ->
 @dataclass
 class Rendered:
     """A dance cut from a library: its frames, its cuts (first frame of each new run), how many frames each cut's
-    blend took, and each frame-to-frame step of each body joint as its source clip makes it ([T - 1, J] metres,
-    time-warped and placed; 0 for the step across a cut)."""
+    blend took, and how far each body joint may step from each frame to the next ([T - 1, J] metres): its 99th
+    percentile in the library, or the step its source clip makes there (time-warped and placed) where that is
+    further; the step across a cut has no source step."""
 
     motion: Motion
     cuts: list[int]
     blends: list[int]
-    own_steps: np.ndarray
+    step_bound: np.ndarray
 
 
 def cut_window(cut: int, blend: int, fps: float) -> slice:
@@ -106,12 +107,11 @@ def cut_window(cut: int, blend: int, fps: float) -> slice:
     return slice(max(cut - 1, 0), cut + max(blend, int(round(CUT_BLEND_S * fps)) + 1))
 
 
-def cut_steps(rendered: Rendered, step_p99: np.ndarray) -> list[float]:
-    """Per cut, the largest step the cut made over its window (`cut_window`): each joint's step over the larger of its
-    99th percentile (`step_p99` [J]) and the step its source clip makes there, so that a clip's own fast frames,
-    which a cut can only pass on, do not count against it (the step across the cut has no source step)."""
+def cut_steps(rendered: Rendered) -> list[float]:
+    """Per cut, the largest step the cut made over its window (`cut_window`): each joint's step over its bound
+    (`Rendered.step_bound`), so that a clip's own fast frames, which a cut can only pass on, do not count against it."""
     pos = rendered.motion.positions()[:, :BODY_JOINTS]
-    made = np.linalg.norm(np.diff(pos, axis=0), axis=-1) / np.maximum(step_p99, rendered.own_steps)
+    made = np.linalg.norm(np.diff(pos, axis=0), axis=-1) / rendered.step_bound
     return [float(made[cut_window(c, m, rendered.motion.fps)].max())
             for c, m in zip(rendered.cuts, rendered.blends, strict=True)]
 
@@ -144,7 +144,7 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     turn, shift = -float(_yaw(rot[:1, 0])[0]), np.zeros(2)
     placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
-    own_steps = np.zeros((n - 1, BODY_JOINTS))  # the source clips' own steps, before any blend
+    own_steps = np.zeros((n - 1, BODY_JOINTS))  # the source clips' own steps, before any blend (0 across a cut)
     blends: list[int] = []  # frames each cut's offset takes to fade
     bounds = [0, *cuts, n]
     for r, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
@@ -163,19 +163,21 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
         contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
         own_steps[a : b - 1] = np.linalg.norm(np.diff(source.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+        # what the blend's steps may reach: from the step into frame a (none in the source) on
+        bound = np.maximum(library.step_p99, np.concatenate([np.zeros((1, BODY_JOINTS)), own_steps[a : b - 1]]))
         if r > 0:  # the two frames before the cut (one twice when the dance's first figure is a frame long)
             before = [max(a - 2, 0), a - 1]
             blends.append(_inertialise(library, placed_rot, placed_root, placed_rot[before], placed_root[before],
-                                       pos, clip, a, b, turn, shift))
+                                       pos, clip, a, b, turn, shift, bound))
         elif kept is not None:
             _inertialise(library, placed_rot, placed_root, kept.rotations[-2:], kept.root_positions[-2:], pos, clip,
-                         a, b, turn, shift)
+                         a, b, turn, shift, bound)
     stance = contact[1:] & contact[:-1]
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
-    held = Motion(placed_rot, hold_stance(motion, stance, np.maximum(library.step_p99, own_steps)), fps,
-                  library.skeleton)
-    return Rendered(held, cuts, blends, own_steps)
+    step_bound = np.maximum(library.step_p99, own_steps)
+    return Rendered(Motion(placed_rot, hold_stance(motion, stance, step_bound), fps, library.skeleton), cuts, blends,
+                    step_bound)
 
 
 def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None) -> np.ndarray:
@@ -235,12 +237,13 @@ def _damped(history: np.ndarray, keep: float) -> np.ndarray:
 
 def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_rot: np.ndarray,
                  old_root: np.ndarray, pos: np.ndarray, clip: np.ndarray, a: int, b: int, turn: float,
-                 shift: np.ndarray) -> int:
+                 shift: np.ndarray, bound: np.ndarray) -> int:
     """Fade the new run's (from frame `a`) difference from the old one's last two frames (`old_rot` [2, J, 3],
     `old_root` [2, 3]) out over its first frames (in place): over `CUT_BLEND_S`, or longer (up to `MAX_BLEND_S`),
-    carrying less of the velocity difference (`VELOCITY_KEPT`), until no body joint steps further in a frame than its
-    99th percentile in the library or its source clip's own step there (`cut_steps`), where a longer fade gets there
-    (else the fade whose largest step is least). Returns the frames it took."""
+    carrying less of the velocity difference (`VELOCITY_KEPT`), until no body joint steps further in a frame than
+    `bound` [b - a, J] allows (its 99th percentile in the library, or its source clip's own step there: see
+    `Rendered.step_bound`), where a longer fade gets there (else the fade whose largest step is least). Returns the
+    frames it took."""
     step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
     lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
     lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
@@ -250,11 +253,6 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
     shortest = min(b - a, max(2, int(round(CUT_BLEND_S * library.fps))))
     longest = min(b - a, max(shortest, int(round(MAX_BLEND_S * library.fps))))
     before = Motion(old_rot[-1:], old_root[-1:], library.fps, library.skeleton).positions()[:, :BODY_JOINTS]
-    own = Motion(rot[a : a + longest], root[a : a + longest], library.fps,
-                 library.skeleton).positions()[:, :BODY_JOINTS]
-    # what a step may reach: its percentile, or the source clip's own step there (none for the step across the cut)
-    bound = np.maximum(library.step_p99, np.concatenate([np.zeros((1, own.shape[1])),
-                                                         np.linalg.norm(np.diff(own, axis=0), axis=-1)]))
     root_diff = old_root - lead_root
     best = None
     for keep in VELOCITY_KEPT:
