@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from .bvh import BvhData
 from .errors import DanceNetError
 from .kinematics import fk_numpy
+from .motion import Motion
 from .skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, EndSite, Skeleton
 
 
@@ -186,6 +187,15 @@ def initial_rotations(source: SourcePose) -> np.ndarray:
         world[:, j] = source.rotations[:, col[j]] if j in col else parent
         local[:, j] = Rotation.from_matrix(np.swapaxes(parent, -1, -2) @ world[:, j]).as_rotvec()
     return local
+
+
+def rotation_motion(source: SourcePose) -> Motion:
+    """The source clip on its performer's skeleton (`performer_skeleton`), each mapped joint given the source
+    joint's world rotation (`initial_rotations`) and the pelvis put where the source's is: a library clip as it is
+    kept, and where the dataset's position fit starts."""
+    skeleton = performer_skeleton(source)
+    root = source.positions[:, source.joints.index(JOINT_INDEX["pelvis"])] - skeleton.offsets[0]
+    return Motion(initial_rotations(source), root, source.fps, skeleton)
 
 
 # Joints with several children: the one the bone points at (and whose direction a retarget matches).

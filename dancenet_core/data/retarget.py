@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..bvh import BvhData
-from ..jointmap import JointMap, SourcePose, initial_rotations, mapped_ancestor, performer_skeleton, pinned, source_pose
+from ..jointmap import JointMap, SourcePose, mapped_ancestor, pinned, rotation_motion, source_pose
 from ..motion import Motion
 from ..skeleton import BODY_JOINTS, DEFAULT_SKELETON
 from .fit import Target, fit_errors, optimise_rotations, target_positions
@@ -66,12 +66,11 @@ def _points(source: SourcePose, targets: list[Target]) -> np.ndarray:
 def retarget(data: BvhData, joint_map: JointMap, fps: float, steps: int = 200, path: str = "BVH") -> Retargeted:
     """Our skeleton doing the clip `data`, at `fps`, fitted to the source joints' world positions."""
     source = source_pose(data, joint_map, fps, path)
-    skeleton = performer_skeleton(source)
+    start = rotation_motion(source)
     targets = fit_targets(source)
     mapped = set(source.joints)
     # Body joints that nothing pins (no mapped joint below them) keep the start rotation.
     frozen = [j for j in range(BODY_JOINTS) if not pinned(j, mapped)]
-    root0 = source.positions[:, source.joints.index(0)] - skeleton.offsets[0]
-    motion = optimise_rotations(skeleton, targets, target_positions(_points(source, targets), targets),
-                                initial_rotations(source), root0, fps, frozen, steps)
+    motion = optimise_rotations(start.skeleton, targets, target_positions(_points(source, targets), targets),
+                                start.rotations, start.root_positions, fps, frozen, steps)
     return Retargeted(motion, source, targets)

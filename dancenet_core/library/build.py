@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 from ..bvh import read_bvh
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..floor import floor_track
-from ..jointmap import CMU, armature_pose, initial_rotations, performer_skeleton, source_pose, up_rotation
+from ..jointmap import CMU, armature_pose, rotation_motion, source_pose, up_rotation
 from ..kinematics import fk_numpy
 from ..motion import Motion
 from ..progress import StageProgress
@@ -61,11 +61,7 @@ def _cmu_clip(path: Path) -> Motion:
     data = read_bvh(path)
     tall = float(np.ptp(data.to_motion().skeleton.rest_positions(), axis=0).max())
     unit = min(UNITS, key=lambda u: abs(np.log(max(tall, 1e-9) * u[1] / DANCER_HEIGHT_M)))[1]
-    source = source_pose(data, replace(CMU, scale=unit), LIBRARY_FPS, path.name)
-    skeleton = performer_skeleton(source)
-    rotations = initial_rotations(source)
-    root = source.positions[:, source.joints.index(0)] - skeleton.offsets[0]
-    return Motion(rotations, root, LIBRARY_FPS, skeleton)
+    return rotation_motion(source_pose(data, replace(CMU, scale=unit), LIBRARY_FPS, path.name))
 
 
 def read_clip(path: Path) -> Motion:
@@ -110,10 +106,7 @@ class ArmatureClip:
 def armature_motion(clip: ArmatureClip) -> Motion:
     """A rig's clip as a library clip, like a BVH's (`read_clip`): on a skeleton of the rig's bone lengths, at
     25 fps, feet on the floor; a one-line DanceNetError when it cannot be one."""
-    source = armature_pose(clip.joints, clip.rest, clip.pose, clip.fps, clip.name)
-    skeleton = performer_skeleton(source)
-    root = source.positions[:, source.joints.index(0)] - skeleton.offsets[0]
-    return _as_clip(Motion(initial_rotations(source), root, clip.fps, skeleton), clip.name)
+    return _as_clip(rotation_motion(armature_pose(clip.joints, clip.rest, clip.pose, clip.fps, clip.name)), clip.name)
 
 
 def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
