@@ -102,7 +102,7 @@ def run_song(
         written.insert(0, blend)
         if args.render:
             written.append(addon.render.render_preview(scene))
-    seconds = (applied.frame_end - applied.frame_start + 1) / (scene.render.fps / scene.render.fps_base)
+    seconds = (applied.frame_end - applied.frame_start + 1) / addon.song.scene_fps(scene)
     takes = f"{len(applied.actions)} takes" if len(applied.actions) > 1 else "1 take"
     files = ", ".join(p.name for p in written)
     return (

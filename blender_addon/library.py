@@ -14,7 +14,7 @@ import bpy
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import DanceRequest
 
-from . import job, rigclips
+from . import job, rigclips, song
 from .job import error_message
 from .pipeline import panel_settings
 
@@ -22,11 +22,6 @@ from .pipeline import panel_settings
 def chosen_folder(props: bpy.types.PropertyGroup) -> Path | None:
     """The panel's Library folder, absolute ("//" is beside the .blend), or None for the shipped library."""
     return panel_settings(props)["library"]
-
-
-def _fps(props: bpy.types.PropertyGroup) -> float:
-    render = props.id_data.render
-    return render.fps / render.fps_base
 
 
 @lru_cache(maxsize=4)
@@ -43,7 +38,7 @@ def chosen_library(props: bpy.types.PropertyGroup, drawn: bool = False) -> Path 
     if props.library_source == "ACTIONS":
         from dancenet_core.library.store import built_path
 
-        actions, fps = rigclips.file_actions()[0], _fps(props)
+        actions, fps = rigclips.file_actions()[0], song.scene_fps(props.id_data)
         key = _drawn_key(rigclips.actions_signature(actions, fps)) if drawn else rigclips.actions_key(actions, fps)
         return built_path(key)
     return chosen_folder(props)
@@ -125,7 +120,7 @@ def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
 
     if props.library_source == "ACTIONS":
         actions, notes = rigclips.file_actions()
-        fps = _fps(props)
+        fps = song.scene_fps(props.id_data)
         key = rigclips.actions_key(actions, fps)
         todo = [] if built_path(key).is_file() else actions
         steps = [(f"sampling {a.name}", partial(_noted, a.name, partial(rigclips.sample_action, a, fps))) for a in todo]

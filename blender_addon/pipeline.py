@@ -107,7 +107,7 @@ def prepare(scene: bpy.types.Scene) -> Plan:
     else:
         path, strip_name = song.check_song(props.music_file), None
         strip = song.strip_playing(scene, path)
-    fps = scene.render.fps / scene.render.fps_base
+    fps = song.scene_fps(scene)
     song_frame = song.song_zero_frame(strip, fps) if strip is not None else float(scene.frame_start)
     start_s, end_s = song.part_of_song(scene, strip, song_frame)
     placement = Placement(strip=strip_name, song_frame=song_frame, add_markers=props.add_markers,
@@ -153,7 +153,7 @@ def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -
         raise DanceNetError("Continue From Here needs a rig whose active action is a DanceNet take: "
                             "generate a dance first")
     path = song.check_song(info["song"])
-    fps = scene.render.fps / scene.render.fps_base
+    fps = song.scene_fps(scene)
     first, last = (round(f) for f in action.frame_range)
     frame = scene.frame_current
     if not first + 2 <= frame <= last + 1 - fps:  # two kept frames give a velocity; a second left to dance
@@ -228,7 +228,7 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
         if strip is None:
             raise DanceNetError(f"The sound strip '{place.strip}' is gone; nothing was changed")
 
-    fps = scene.render.fps / scene.render.fps_base
+    fps = song.scene_fps(scene)
     req = replace(plan.request, fps=fps)  # keyed at the scene's rate now, whatever it was when asked
     if place.frame_start is not None:
         frame_start = place.frame_start

@@ -29,7 +29,7 @@ import numpy as np
 from dancenet_core.errors import DanceNetError
 from dancenet_core.skeleton import JOINT_INDEX
 
-from . import bonemap, rigchoice, takes
+from . import bonemap, rigchoice, song, takes
 from .rigdef import REQUIRED_JOINTS
 from .vrmhumanoid import humanoid_map
 
@@ -113,10 +113,6 @@ def _frames(action: bpy.types.Action) -> range:
     return range(math.floor(first), math.ceil(last) + 1)
 
 
-def _fps(scene: bpy.types.Scene) -> float:
-    return scene.render.fps / scene.render.fps_base
-
-
 def sample_fbx(path: Path) -> ArmatureClip:
     """An FBX file's clip: its armature's animation (the first take), imported into a scene of its own and removed
     again; a one-line DanceNetError when it holds none a library can use."""
@@ -136,7 +132,7 @@ def sample_fbx(path: Path) -> ArmatureClip:
             raise DanceNetError(f"its armature '{rigs[0].name}' has no animation")
         rig = animated[0]
         return _sample(rig, scene, humanoid_joints(rig), _frames(rig.animation_data.action), path.name, "",
-                       _fps(scene))
+                       song.scene_fps(scene))
 
 
 @dataclass(frozen=True)

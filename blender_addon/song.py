@@ -13,6 +13,11 @@ from dancenet_core.errors import DanceNetError
 _AUDIO_SUFFIXES = frozenset(".wav .mp3 .ogg .oga .flac .m4a .aac .aif .aiff .opus .wma .mp4 .webm".split())
 
 
+def scene_fps(scene: bpy.types.Scene) -> float:
+    """The scene's true frame rate: `fps` frames per `fps_base` seconds (30000 / 1001 = 29.97)."""
+    return scene.render.fps / scene.render.fps_base
+
+
 def strips_of(scene: bpy.types.Scene) -> bpy.types.bpy_prop_collection:
     """Top-level sequencer strips: `strips` since 4.4 (and only that in 5.0), `sequences` before.
 
@@ -82,7 +87,7 @@ def part_of_song(scene: bpy.types.Scene, strip: bpy.types.Strip | None, song_fra
     timeline), within the panel's frames when "Part of the Song" is on. The end is None for a song with
     no strip yet and no chosen end (the whole song)."""
     props = scene.dancenet
-    fps = scene.render.fps / scene.render.fps_base
+    fps = scene_fps(scene)
     lo, hi = (strip.frame_final_start, strip.frame_final_end) if strip is not None else (song_frame, None)
     if props.use_part:
         lo, hi = max(lo, props.part_start), min(hi, props.part_end + 1) if hi is not None else props.part_end + 1
