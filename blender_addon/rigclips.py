@@ -1,4 +1,4 @@
-"""Motion-library clips from rigs (issue 25): an FBX file of the Library folder, or an action of the open file that
+"""Motion-library clips from rigs: an FBX file of the Library folder, or an action of the open file that
 animates a humanoid armature, sampled bone by bone as Blender evaluates it (constraints and drivers included) into
 the core's `ArmatureClip`, which `dancenet_core.library.build` reads onto our skeleton whatever the rig's rest pose.
 

@@ -33,7 +33,7 @@ _TAKE_FIELDS: dict[str, type | tuple[type, ...]] = {
 
 def stored_json(text: Any, kind: type) -> Any:
     """JSON the add-on stored in a .blend, or None when it is unreadable or not a `kind`: a damaged or crafted
-    file must not raise out of a panel, a poll or a Generate Dance (issue 26: any saved file the add-on reads)."""
+    file must not raise out of a panel, a poll or a Generate Dance (the rule for any saved file the add-on reads)."""
     try:
         value = json.loads(text)
     except (TypeError, ValueError, RecursionError):

@@ -1,5 +1,5 @@
 """The add-on's warm-up thread (the first Generate Dance's imports and weights, and the numba kernels, compiled
-by a process of its own meanwhile: dancenet_core/warmup.py; issue 27) and the lock a Generate Dance shares with it.
+by a process of its own meanwhile: dancenet_core/warmup.py) and the lock a Generate Dance shares with it.
 
 Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not made to race
 one another, and a pytest process running Generate Dance beside a warm-up ended in a segmentation fault. Each

@@ -2,7 +2,7 @@
 
 Compiling the kernels (the music networks' loop, the beat tracker's decode, the sampler) takes seconds of CPU
 from cold; a Blender add-on clicked right after it is installed would spend most of its first Generate Dance
-waiting for it (issue 27: 15-22 s for a 12-s strip). Each kernel therefore has a numpy twin that does the
+waiting for it (15-22 s for a 12-s strip, compiled on the click). Each kernel therefore has a numpy twin that does the
 same arithmetic in the same order, so it gives the same numbers bit for bit (tests/test_jit.py compares them):
 slower per frame, but it needs no compile, and a short song is short. The command line compiles on first use
 as it always did; the add-on calls `defer()`, so that a kernel runs compiled only once its warm-up (a process

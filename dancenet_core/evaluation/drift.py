@@ -1,5 +1,5 @@
 """Does a free-running dance keep its level? The normalised level and root speed of DanceNet's dances against
-time, beside the capture's on the same songs (issue 23: exposure bias shows as a level that climbs or sinks).
+time, beside the capture's on the same songs (exposure bias shows as a level that climbs or sinks).
 
 The level of a frame is the mean absolute value of its modelled channels in the model's normalised units (the
 capture's is about 0.3-0.4); the root speed is the root's horizontal step per frame, in m/s. Both are averaged

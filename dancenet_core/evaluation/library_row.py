@@ -1,7 +1,7 @@
 """The motion-library engine's row of `dancenet evaluate --library`: the training split's real dances as the library
 (cut on the beats of the music they were danced to), dancing to the test-split songs' spans.
 
-Besides the table's columns it measures what issue 25 asks of the engine: the copied runs (share of frames from
+Besides the table's columns it measures the engine's copying and its cuts: the copied runs (share of frames from
 runs of one clip longer than `LONG_RUN_BARS` bars, longest run) per dance, and at every cut the largest step of any
 joint over the frames the cut blends (`transitions.cut_window`), against that joint's 99th percentile of
 frame-to-frame motion in the capture: the step the cut made (`transitions.cut_steps`: where the source clip itself

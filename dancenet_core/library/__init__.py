@@ -1,4 +1,4 @@
-"""The motion library engine (issue 25): a folder of real motion clips cut on the beats of a song.
+"""The motion library engine: a folder of real motion clips cut on the beats of a song.
 
 - `analysis.py`: one clip's own beats (kinematic beats: minima of its joints' speed), tempo, bars, and the pose,
   velocity and foot contact at each beat (where a figure may be cut).

@@ -30,7 +30,7 @@ from .store import MotionLibrary
 # further: the made clips' hands then stepped 1.21x their 99th percentile at a cut (1.16x at 0.5 s).
 CUT_BLEND_S = 0.5
 # A cut whose fading offset would move some joint further in a frame than the library's dancers do (its 99th
-# percentile step) fades longer, up to this: a slower fade moves the joints less per frame (issue 25).
+# percentile step) fades longer, up to this: a slower fade moves the joints less per frame.
 MAX_BLEND_S = 1.2
 # Shares of a cut's velocity difference its fade carries, tried in turn until no joint steps past its percentile:
 # carrying all of it, the fade must take back the ground the difference covers (about half the difference again,

@@ -103,7 +103,7 @@ def _worker_start(parent: int, motion: Motion, width: int, height: int, floor: f
 def _worker_draw(chunk: np.ndarray) -> np.ndarray:
     """Frames [n, H, W, 3] of one chunk of frame numbers. Any error comes back as its one-line text: PyOpenGL's
     errors carry ctypes arguments that cannot be pickled, which hid the real cause behind `cannot pickle
-    '_ctypes.CArgObject'` (issue 26 item 14)."""
+    '_ctypes.CArgObject'`."""
     st = _worker_state
     try:
         if "stage" not in st:

@@ -31,11 +31,11 @@ class DanceNetConfig:
     dilation_cycle: int = 5  # dilations 1, 2, 4, 8, 16 repeated
     kernel_size: int = 2
     mixtures: int = 1
-    # Each component's mean is predicted as a change from the input frame (True) or outright (False, the
-    # first release). A 64-channel residual stack cannot carry all 183 channels of the current frame to its
+    # Each component's mean is predicted as a change from the input frame (True) or outright (False, every
+    # shipped model). A 64-channel residual stack cannot carry all 183 channels of the current frame to its
     # output: the first model's root deltas came out at half the dancer's speed (R^2 0.42 where copying the
     # previous frame scores 0.97). Predicting the change passes the frame through (R^2 0.97 from the start),
-    # but free-running such a model drifts away within seconds (docs/training.md): an option, off by default.
+    # but free-running such a model drifts away within seconds (docs/experiments.md): an option, off by default.
     residual_output: bool = False
     # A linear path from the input frame straight to every output, beside the stack (starts at zero). It
     # carries what the 64 residual channels lose (the root's steps) while the outputs stay absolute, so a

@@ -122,7 +122,7 @@ class FootChannels:
     contacts: np.ndarray
 
     # The root's travel within `lower`: dx, dz, dyaw. The model leaves them alone so that cleaning the feet
-    # never changes where the dancer goes: a model free to change them halved the ground covered (issue 13).
+    # never changes where the dancer goes: a model free to change them halved the ground covered.
     TRAVEL = (0, 2, 3)
 
     @classmethod
@@ -198,7 +198,7 @@ class RuntimeFootFixer:
             raise DanceNetError(f"{path} is not a Foot Constraint Model weights file ({first_line(e)}); {hint}") from e
         (w_in, _, _), (w_out, _, _) = fixer.net.layers[0], fixer.net.layers[-1]
         if (w_in.shape[0], w_out.shape[1]) != (3 * len(fixer.ch.inputs), len(fixer.ch.corrected)):
-            # Before issue 13's travel fix the model also wrote the root's travel: such a file cannot be used.
+            # A model that also writes the root's travel (an older layout) would move the dancer: it cannot be used.
             raise DanceNetError(f"{path} is a Foot Constraint Model for other channels ({w_in.shape[0] // 3} in, "
                                 f"{w_out.shape[1]} out; this version needs {len(fixer.ch.inputs)} in, "
                                 f"{len(fixer.ch.corrected)} out); {hint}")

@@ -42,7 +42,7 @@ class TrainSettings:
     snapshot_every: int = _option(0, "keep the weights every N steps (0: never)")
     residual_output: bool = _option(
         False, "predict each frame as a change from the last one instead of outright: far better one step ahead, "
-               "but free-running dances drift away (docs/training.md); off by default")
+               "but free-running dances drift away (docs/experiments.md); off by default")
     own_inputs: float = _option(
         0.0, "share of input frames replaced by the model's own one-step draws (against exposure bias: the model "
              "learns to steer back from its own mistakes); costs one more forward pass")
@@ -58,7 +58,7 @@ class TrainSettings:
            "true N-frame rollout when N <= passes (acLSTM's auto-conditioning, in parallel)")
     own_stretch: int = _option(
         0, "own frames come in stretches of this many, between stretches of real frames as long (0: single "
-           "frames scattered at random, the first release's --own-inputs)")
+           "frames scattered at random)")
     own_ramp: float = _option(
         0.0, "share of the run over which the share of own frames rises from 0 to --own-inputs (scheduled sampling)")
     own_temperature: float = _option(1.0, "temperature of the own draws (generation runs at 1.0)")

@@ -1,4 +1,4 @@
-"""The motion prior (issue 23, lever 3): DanceNet first trained on all the motion there is, without music, then
+"""The motion prior: DanceNet first trained on all the motion there is, without music, then
 fine-tuned on the paired dances with `--init`.
 
 Why: the paired data is 71 minutes of four ballroom styles and a continued run trades style for energy within a

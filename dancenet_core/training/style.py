@@ -34,7 +34,7 @@ from ..series import stretch_frames
 from .configs import StyleSettings
 
 # Settings chosen on training songs held out by song (`validate`), never on the test split.
-# Training windows are played up to this much faster or slower. With the tempo an input (issue 23), none: the
+# Training windows are played up to this much faster or slower. With the tempo an input, none: the
 # tempos that tell cha-cha (115-125 bpm) from tango (125-128) are within any stretch (VALIDATION_METER_TEMPO).
 AUG_TEMPO = 0.0
 
@@ -54,7 +54,7 @@ VALIDATION = {"activations": "0.72 (0.60)", "bumps": "0.88 (1.00)", "baseline": 
 # The same, with tango (the extra folder) as a fourth style: 200 steps and 400 steps.
 VALIDATION_WITH_TANGO = {"200": "0.55 (0.50)", "400": "0.50 (0.50)"}
 
-# `train --validate` with beats per bar and tempo as input columns (issue 23), conv model: balanced accuracy by
+# `train --validate` with beats per bar and tempo as input columns, conv model: balanced accuracy by
 # window (by song), chroma blanked in half the windows unless said; several runs (training seeds 2020 and 1; the
 # stretched ones also on a 16-core machine's CPU) give their range.
 VALIDATION_METER_TEMPO = {

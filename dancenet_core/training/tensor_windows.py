@@ -2,7 +2,7 @@
 `data.windows.WindowSampler`, but gathered from tensors that live where the model does.
 
 Why: on a GPU the numpy batch (a Python loop over windows, then normalising and copying) left the GPU waiting
-most of the time (about 9 steps/s per process on an H100, issue 23). Here every sequence is normalised once,
+most of the time (about 9 steps/s per process on an H100). Here every sequence is normalised once,
 concatenated into one tensor, and a batch is one multinomial draw and one gather.
 """
 
