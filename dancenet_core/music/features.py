@@ -300,19 +300,27 @@ def _run_all(ex: Executor, fn: Callable, jobs: list[tuple], report: Progress) ->
             out.append(fut.result())
             report((i + 1) / len(futures))
     except BaseException:
-        for fut in futures:
-            fut.cancel()
-        _kill_workers(ex)
+        _stop_now(ex)
         raise
     return out
 
 
-def _kill_workers(ex: Executor) -> None:
-    """Stop a pool's worker processes now (Ctrl-C, SIGTERM, a failed block): a running block can take a
-    minute, the pool's exit would wait for it, and a worker whose parent died blocks forever. Python 3.11's
-    pool has no public call for this; `_processes` is its pid -> Process map."""
-    for proc in list((getattr(ex, "_processes", None) or {}).values()):
+def _stop_now(ex: Executor) -> None:
+    """Stop a pool now (Ctrl-C, SIGTERM, SIGHUP, a failed block) and wait until it has: a running block can take
+    a minute, the pool's exit would wait for it, and a worker whose parent died blocks forever. The queued
+    blocks are dropped by the pool's own thread (shutdown's cancel_futures): cancelled from here, that thread
+    could find one cancelled when it marks the queue failed after a worker is killed, and die with a traceback
+    (InvalidStateError) before it ends the other workers. Python 3.11's pool has no public call to kill its
+    workers; `_processes` is its pid -> Process map (shutdown forgets it, so it is read first)."""
+    workers = list((getattr(ex, "_processes", None) or {}).values())
+    manager = getattr(ex, "_executor_manager_thread", None)
+    ex.shutdown(wait=False, cancel_futures=True)
+    for proc in workers:
         proc.kill()
+    for proc in workers:
+        proc.join()
+    if manager is not None:
+        manager.join()
 
 
 def _existing(path: str | Path) -> Path:
