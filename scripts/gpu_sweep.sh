@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Several DanceNet training configurations side by side on a lent CUDA GPU for a fixed wall time, then each
-# validated on the same machine, so a short loan gives a validation table (issue 23). Never needed: the CPU
+# validated on the same machine, so a short loan gives a validation table. Never needed: the CPU
 # path (`dancenet train dancenet`) is the default and this only runs the same command several times at once.
 #
 #   bash scripts/gpu_sweep.sh PACK MINUTES OUT CONFIGS

@@ -147,7 +147,7 @@ def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequen
         f"{VALIDATION_WITH_TANGO['400']} at 400: tango's songs (about 120-130 bpm, four beats a bar) are learnt, "
         "and cha-cha's, in the same tempo range, are taken for tango (see the confusion below). The style can "
         "always be chosen by hand (`--style`, the panel).",
-        "- Metre and tempo as inputs (issue 23): from the bumps alone the net had to count beats between "
+        "- Metre and tempo as inputs: from the bumps alone the net had to count beats between "
         "downbeats and time their spacing, and it called a held-out waltz rumba and cha-cha tango. Now beats per "
         "bar and the local tempo are two more input columns. The tempo stretch of the augmentation then had to "
         "go: cha-cha (115-125 bpm here) and tango (125-128 bpm) lie within any stretch tried. Balanced accuracy "
@@ -428,6 +428,6 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
             f"- Trained {footfix_info['steps']} steps with sliding weight "
             f"{footfix_info['contact_weights']['slide_weight']:g} on {footfix_info['dancenet_dances']} of "
             "DanceNet's dances to the training songs; it corrects the legs and the pelvis' height and tilt, "
-            "never the root's travel (docs/training.md has the sweep of the sliding weight on the validation songs).",
+            "never the root's travel (docs/experiments.md: its sweeps of the sliding weight on the validation songs).",
         ]
     return "\n".join(lines + (extra or [])) + "\n"
