@@ -12,6 +12,10 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from concurrent.futures import Executor
 
 # Shipped checkpoints, the song split and the model cards.
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
@@ -70,3 +74,21 @@ def _exit_with(parent: int) -> None:
     while os.getppid() == parent:
         time.sleep(0.5)
     os._exit(1)
+
+
+def stop_pool(ex: Executor) -> None:
+    """Stop a pool now (Ctrl-C, SIGTERM, SIGHUP, a failed block) and wait until it has: a running block can take
+    a minute, the pool's exit would wait for it, and a worker whose parent died blocks forever. The queued
+    blocks are dropped by the pool's own thread (shutdown's cancel_futures): cancelled from here, that thread
+    could find one cancelled when it marks the queue failed after a worker is killed, and die with a traceback
+    (InvalidStateError) before it ends the other workers. Python 3.11's pool has no public call to kill its
+    workers; `_processes` is its pid -> Process map (shutdown forgets it, so it is read first)."""
+    workers = list((getattr(ex, "_processes", None) or {}).values())
+    manager = getattr(ex, "_executor_manager_thread", None)
+    ex.shutdown(wait=False, cancel_futures=True)
+    for proc in workers:
+        proc.kill()
+    for proc in workers:
+        proc.join()
+    if manager is not None:
+        manager.join()

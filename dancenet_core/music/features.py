@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import jit
 from ..atomic import atomic_open
-from ..environment import cache_root, default_workers, end_with_parent
+from ..environment import cache_root, default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, first_line
 from ..progress import Progress
 from ..series import interp_frames, stretch_frames
@@ -300,27 +300,9 @@ def _run_all(ex: Executor, fn: Callable, jobs: list[tuple], report: Progress) ->
             out.append(fut.result())
             report((i + 1) / len(futures))
     except BaseException:
-        _stop_now(ex)
+        stop_pool(ex)
         raise
     return out
-
-
-def _stop_now(ex: Executor) -> None:
-    """Stop a pool now (Ctrl-C, SIGTERM, SIGHUP, a failed block) and wait until it has: a running block can take
-    a minute, the pool's exit would wait for it, and a worker whose parent died blocks forever. The queued
-    blocks are dropped by the pool's own thread (shutdown's cancel_futures): cancelled from here, that thread
-    could find one cancelled when it marks the queue failed after a worker is killed, and die with a traceback
-    (InvalidStateError) before it ends the other workers. Python 3.11's pool has no public call to kill its
-    workers; `_processes` is its pid -> Process map (shutdown forgets it, so it is read first)."""
-    workers = list((getattr(ex, "_processes", None) or {}).values())
-    manager = getattr(ex, "_executor_manager_thread", None)
-    ex.shutdown(wait=False, cancel_futures=True)
-    for proc in workers:
-        proc.kill()
-    for proc in workers:
-        proc.join()
-    if manager is not None:
-        manager.join()
 
 
 def _existing(path: str | Path) -> Path:

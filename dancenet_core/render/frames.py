@@ -12,7 +12,7 @@ from concurrent.futures import Future, ProcessPoolExecutor
 
 import numpy as np
 
-from ..environment import default_workers, end_with_parent
+from ..environment import default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, first_line
 from ..kinematics import fk_numpy
 from ..motion import Motion
@@ -84,8 +84,8 @@ def _iter_parallel(motion: Motion, frames: np.ndarray, width: int, height: int, 
             while pending:
                 yield from pending.popleft().result()
         finally:
-            for fut in pending:
-                fut.cancel()
+            if pending:  # stopped early (an error, a signal, the caller stopped reading)
+                stop_pool(pool)
 
 
 _worker_state: dict = {}
