@@ -1,4 +1,4 @@
-"""The layout's promises (README "Layout"): what dances loads no training, data, evaluation or command code;
+"""The layout's promises (docs/architecture.md): what dances loads no training, data, evaluation or command code;
 `dancenet --help` is quick and torch-free; the command line and the settings dataclasses agree; and the
 import contracts hold."""
 

@@ -727,7 +727,7 @@ def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsy
     daz = bonemap.load_shipped("DAZ")
     twists = {"left_shoulder": "lShldrTwist", "right_elbow": "rForearmTwist", "left_hip": "lThighTwist"}
     # Proportions near the model's dancer: judged against the dance scaled to the rig's height, a rig whose
-    # torso-to-leg ratio is far from the dancer's cannot land head and feet at once (see the README).
+    # torso-to-leg ratio is far from the dancer's cannot land head and feet at once (see docs/animators.md).
     rows = convention_rest(daz.bones, scale=1.05, a_pose_deg=45.0, arm_scale=1.03, leg_scale=0.98, splits=twists,
                            skeleton=load_bundle().skeleton)
     rig = build_armature("Genesis", rows, mixamo_import=False)
