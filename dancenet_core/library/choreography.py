@@ -2,17 +2,21 @@
 
 1. The song's beat grid (`song_grid`): its tracked beats, extended at the same tempo to cover the part danced,
    cut into bars at its downbeats (none longer than the meter).
-2. The plan (`plan`): dynamic programming over the bars. A state is a figure start in the library (a downbeat of a
-   clip in the song's meter, or every `meter` beats of a clip in another); a bar of n beats takes the library's n
-   beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of the mean
-   onset strength), the time-warp (beyond +-15% per beat only when nothing fits, at a steep cost) and seeded noise
+2. The plan (`plan`): dynamic programming over the bars. A state is a figure: a start in the library (a downbeat
+   of a clip in the song's meter, or every `meter` beats of a clip in another) and how many clip beats it lays on
+   each song beat (1, 2, 1/2, 3/2 or 2/3: `RATIOS`), so that a clip danced at half or twice the song's tempo, or
+   whose tempo was read an octave off, still plays at its dancers' speed; a bar of n beats takes the library's
+   ratio x n beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of
+   the mean onset strength), the time-warp in real time (how much faster or slower than captured each beat plays:
+   beyond +-15% only when nothing fits, at a steep cost) and seeded noise
    (different seeds, different dances); each join's: the distance between the pose, velocity and foot contact
    where one figure ends and the next starts (0 where the next figure is the clip's own continuation), and, at a
    cut, a steep cost where some joint of the new figure, as fast as the warp plays it, steps further in the
    frames the cut blends than `CALM_LIMIT` of that joint's 99th percentile in the library (cuts are made where
-   the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`). The whole
-   table is [bars, figures] and each step a vectorised min over [figures, figures]: a 3-minute song on a
-   30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
+   the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`). A clip is only tried at the
+   ratios that can play it near its speed (`RATIO_MARGIN`), so there are about as many figures as starts. The
+   whole table is [bars, figures] and each step a vectorised min over [figure ends, figure starts]: a 3-minute
+   song on a 30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
 3. The dance (`transitions.render`): every figure's frames sampled at the warped times, the root path carried
    across cuts, each cut inertialised.
 """
@@ -29,9 +33,16 @@ from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from .analysis import POSE_DIM, frame_features
 from .store import MotionLibrary
-from .transitions import CUT_BLEND_S, Figure, Rendered, cut_steps, render
+from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
 
-WARP_RANGE = 0.15  # a figure may be slowed or hurried by this much per beat
+# A figure plays every frame within this share of the speed it was captured at (in real time, whatever the beats):
+# it is laid onto the song's beats at one of `RATIOS` clip beats per song beat, so that a clip danced at half or
+# twice the song's tempo (or read an octave off) keeps its dancers' speed.
+WARP_RANGE = 0.15
+RATIOS = (1.0, 2.0, 0.5, 1.5, 2.0 / 3.0)
+# A ratio is tried for a clip when it plays the clip's median beat within this much (log speed) beyond the range:
+# the per-beat warp decides; ratios far off never fit and only cost time.
+RATIO_MARGIN = 0.1
 # A cut's new figure: its joints' steps over the frames the cut blends (and the one before) at most this share of
 # each joint's 99th percentile in the library, as the warp plays them; the rest is left to the fading offset. In a
 # library whose dancers are never that calm, the calmest quarter of its figures' openings sets the limit instead,
@@ -82,7 +93,7 @@ class Report:
     long_run_share: float = 0.0  # share of frames from runs of one clip longer than LONG_RUN_BARS bars
     longest_run_bars: int = 0
     longest_run_s: float = 0.0
-    max_warp: float = 0.0  # largest per-beat time-warp, as a fraction (0.1: 10% slower or faster)
+    max_warp: float = 0.0  # largest real-time warp of a beat, as a fraction (0.1: 10% slower or faster than captured)
 
     def summary(self) -> dict:
         return {"figures": len(self.figures), "cuts": len(self.cuts), "long_run_bars": LONG_RUN_BARS,
@@ -131,10 +142,11 @@ def song_grid(analysis: MusicAnalysis, start_s: float, end_s: float) -> Grid:
     return Grid(beats, bars, meter)
 
 
-def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.ndarray:
-    """Beats where a figure may start (with `meter` more beats of its clip after it): downbeats of clips in `meter`,
-    every `meter` beats from the first downbeat of the others; only clips of `style` when the library has figures
-    of it."""
+def figure_starts(library: MotionLibrary, meter: int, style: str | None, every: int | None = None) -> np.ndarray:
+    """Beats where a figure may start: downbeats of clips in `meter`, every `meter` beats from the first downbeat of
+    the others, and with `every` (fewer beats than `meter`: a figure that lays half a clip's bar on a song's bar)
+    every `every` beats from each of those; only beats with one more of their clip after them, and only clips of
+    `style` when the library has figures of it."""
     starts = np.zeros(len(library.beats), bool)
     for c in range(library.num_clips):
         idx = np.flatnonzero(library.beat_clip == c)
@@ -145,14 +157,47 @@ def figure_starts(library: MotionLibrary, meter: int, style: str | None) -> np.n
         else:
             first = idx[np.argmax(library.downbeat[idx])] - idx[0]
             starts[idx[first::meter]] = True
-    ahead = np.arange(len(starts)) + meter
-    starts[ahead >= len(starts)] = False
-    starts &= library.beat_clip[np.minimum(ahead, len(starts) - 1)] == library.beat_clip
+    if every is not None and every < meter:
+        downs = np.flatnonzero(starts)
+        starts[np.minimum((downs[:, None] + every * np.arange(1, -(-meter // every))[None]).ravel(),
+                          len(starts) - 1)] = True
+    nxt = np.minimum(np.arange(len(starts)) + 1, len(starts) - 1)
+    starts &= (library.beat_clip[nxt] == library.beat_clip) & (np.arange(len(starts)) + 1 < len(starts))
     if style:
         same = starts & np.isin(library.beat_clip, [c for c, s in enumerate(library.styles) if s == style])
         if same.any():
             starts = same
     return np.flatnonzero(starts)
+
+
+def clip_ibi_s(library: MotionLibrary) -> np.ndarray:
+    """[clips]: each clip's median beat interval (seconds; inf for a clip of one beat)."""
+    ibi = np.full(library.num_clips, np.inf)
+    for c in range(library.num_clips):
+        b = library.beats[library.beat_clip == c]
+        if len(b) > 1:
+            ibi[c] = float(np.median(np.diff(b))) / library.fps
+    return ibi
+
+
+def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The figures the plan chooses from: (start beat, clip beats per song beat) pairs. Each clip is tried at the
+    ratios (`RATIOS`) that play its median beat near its captured speed on the song's median beat, at least at its
+    nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar."""
+    song_ibi = float(np.median(np.diff(grid.beats))) if len(grid.beats) > 1 else 60.0 / DEFAULT_BPM
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.abs(np.log(np.array(RATIOS)[None, :] * clip_ibi_s(library)[:, None] / song_ibi))
+    off = np.nan_to_num(off, nan=np.inf, posinf=np.inf)
+    tried = (off <= np.log1p(WARP_RANGE) + RATIO_MARGIN) | (off == off.min(axis=1, keepdims=True))
+    starts, ratios = [], []
+    for k, r in enumerate(RATIOS):
+        span = r * grid.meter
+        every = int(round(span)) if r < 1 and abs(span - round(span)) < 1e-9 else None
+        s = figure_starts(library, grid.meter, style, every)
+        s = s[tried[library.beat_clip[s], k]]
+        starts.append(s)
+        ratios.append(np.full(len(s), r))
+    return np.concatenate(starts), np.concatenate(ratios)
 
 
 def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
@@ -180,94 +225,108 @@ def _weights(settings: Settings, dim: int) -> np.ndarray:
     return w
 
 
+def _speed_limit_excess(log_speed: np.ndarray) -> np.ndarray:
+    """How far (log) a real-time speed lies outside [1 - WARP_RANGE, 1 + WARP_RANGE]."""
+    return np.maximum(np.maximum(log_speed - np.log1p(WARP_RANGE), np.log1p(-WARP_RANGE) - log_speed), 0.0)
+
+
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
-         previous: np.ndarray | None = None) -> list[tuple[int, int]]:
-    """The figure start (a beat of the library) for every bar of `grid`: the cheapest path through the bars
-    (see the module's docstring); `onset` [T] is the song's onset strength at MUSIC_FPS. `previous`
-    [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued dance's last frame),
-    joined to as a figure's end is."""
-    starts = figure_starts(library, grid.meter, style)
+         previous: np.ndarray | None = None) -> list[tuple[int, float]]:
+    """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
+    the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
+    MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
+    dance's last frame), joined to as a figure's end is."""
+    starts, ratios = figure_states(library, grid, style)
     nb = len(library.beats)
+    too_short = DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut a figure "
+                              "from; add longer clips (a few bars each)")
     if len(starts) == 0:
-        raise DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut a figure "
-                            "from; add longer clips (a few bars each)")
-    lib_ibi = np.append(np.diff(library.beats), np.inf)
-    lib_ibi[np.flatnonzero(np.diff(library.beat_clip))] = np.inf  # no beat interval across clips
-    lib_ibi /= library.fps
+        raise too_short
+    clip = library.beat_clip[starts]
     csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
-    fig_energy = _ranks((csum[np.minimum(starts + grid.meter, nb)] - csum[starts]) / grid.meter)
+    span = np.maximum(np.round(ratios * grid.meter).astype(np.int64), 1)
+    fig_energy = _ranks((csum[np.minimum(starts + span, nb)] - csum[starts]) / span)
     weights = _weights(settings, library.features.shape[1])
     feats = library.features * np.sqrt(weights)
     sq = (feats**2).sum(1)
+    ustarts, start_of = np.unique(starts, return_inverse=True)
 
     bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
     frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
     music = np.array([onset[a : max(a + 1, b)].mean() for a, b in frames])
     music_rank = _ranks(music)
 
-    transition_cache: dict[int, np.ndarray] = {}
-    continuations: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # (from, to) pairs where a clip carries on
     entry = entry_steps(library, starts)
     limit = max(CALM_LIMIT, float(np.quantile(entry, CALM_SHARE)))
+    cache: dict[int, tuple] = {}
     scale = None
 
-    def transitions(n_prev: int) -> np.ndarray:
-        """[F, F]: the cost from the figure at each start, n_prev beats long, to each start."""
+    def joins(n_prev: int) -> tuple:
+        """For figures n_prev song beats long: where each ends (an index into the distinct ends), the cost [E, U]
+        of a cut from each distinct end to each distinct start, and per figure the end it carries on from (its
+        clip's own continuation, -1: none)."""
         nonlocal scale
-        if n_prev not in transition_cache:
-            ends = np.minimum(starts + n_prev, nb - 1)
-            d = sq[ends][:, None] + sq[starts][None, :] - 2.0 * feats[ends] @ feats[starts].T
-            d = np.maximum(d, 0.0)
+        if n_prev not in cache:
+            ends = starts + ratios * n_prev
+            uend, end_of = np.unique(ends, return_inverse=True)
+            at = np.minimum(np.round(uend).astype(np.int64), nb - 1)
+            d = np.maximum(sq[at][:, None] + sq[ustarts][None, :] - 2.0 * feats[at] @ feats[ustarts].T, 0.0)
             if scale is None:
                 scale = float(np.median(d)) or 1.0
-            d = d / scale + settings.cut
-            carries = ends[:, None] == starts[None, :]
-            d[carries] = 0.0  # the clip's own continuation
-            transition_cache[n_prev], continuations[n_prev] = d, np.nonzero(carries)
-        return transition_cache[n_prev]
+            k = np.minimum(np.searchsorted(uend, starts), len(uend) - 1)
+            cache[n_prev] = (end_of, d / scale + settings.cut, np.where(uend[k] == starts, k, -1))
+        return cache[n_prev]
 
-    def speed(b: int) -> np.ndarray:
-        """[F]: how much faster than in its clip each figure plays the first beat of bar b."""
-        a, _ = grid.bars[b]
-        with np.errstate(divide="ignore"):
-            return lib_ibi[starts] / (grid.beats[a + 1] - grid.beats[a])
-
-    def calm(b: int) -> np.ndarray:
-        """[F]: the cost of entering bar b's figure at each start by a cut, for its steps at the cut."""
-        over = np.maximum(np.nan_to_num(entry * speed(b), posinf=0.0) - limit, 0.0)
-        return settings.calm * over
-
-    def unary(b: int) -> np.ndarray:
+    def unary(b: int) -> tuple[np.ndarray, np.ndarray]:
+        """[F] each figure's cost on bar b, and how much faster than captured it plays the bar's first beat."""
         a, n = grid.bars[b]
-        song_ibi = np.diff(grid.beats[a : a + n + 1])
-        idx = np.minimum(starts[:, None] + np.arange(n)[None, :], nb - 1)
-        with np.errstate(divide="ignore"):
-            warp = np.abs(np.log(song_ibi[None, :] / lib_ibi[idx])).max(axis=1)
-        fits = np.isfinite(warp) & (library.beat_clip[np.minimum(starts + n, nb - 1)] == library.beat_clip[starts])
+        song_dt = np.diff(grid.beats[a : a + n + 1])
+        position = starts[:, None] + ratios[:, None] * np.arange(n + 1)[None, :]
+        last = np.minimum(np.ceil(position[:, -1] - 1e-9).astype(np.int64), nb - 1)
+        fits = (position[:, -1] <= nb - 1) & (library.beat_clip[last] == clip)
+        clip_dt = np.diff(beat_frames(library, position), axis=1) / library.fps
+        with np.errstate(divide="ignore", invalid="ignore"):
+            log_speed = np.log(clip_dt / song_dt[None, :])
+        warp = np.abs(log_speed).max(axis=1)
+        fits &= np.isfinite(warp)
         cost = (settings.energy * (music_rank[b] - fig_energy) ** 2 + settings.tempo * warp**2
-                + settings.out_of_range * np.maximum(warp - np.log1p(WARP_RANGE), 0.0)
+                + settings.out_of_range * _speed_limit_excess(log_speed).max(axis=1)
                 + rng.normal(0.0, settings.noise, len(starts)))
-        return np.where(fits, cost, np.inf)
+        return np.where(fits, cost, np.inf), np.exp(np.nan_to_num(log_speed[:, 0], nan=0.0, posinf=0.0))
 
-    cost = unary(0)
+    def calm(speed: np.ndarray) -> np.ndarray:
+        """[F]: the cost of entering each figure by a cut, for its steps at the cut as fast as it plays them."""
+        return settings.calm * np.maximum(entry * speed - limit, 0.0)
+
+    cost, speed = unary(0)
     if previous is not None:
-        transitions(grid.bars[0][1])  # sets the scale of a join's cost
+        joins(grid.bars[0][1])  # sets the scale of a join's cost
         p = previous.astype(np.float32) * np.sqrt(weights)
-        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut + calm(0)
-    back = np.zeros((len(grid.bars), len(starts)), np.int32)
+        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut + calm(speed)
+    if not np.isfinite(cost).any():
+        raise too_short
+    back = np.zeros((len(grid.bars), len(starts)), np.int64)
     for b in range(1, len(grid.bars)):
-        entering = calm(b)
-        total = cost[:, None] + transitions(grid.bars[b - 1][1]) + entering[None, :]
-        came, went = continuations[grid.bars[b - 1][1]]
-        total[came, went] -= entering[went]  # carrying on within a clip is no cut
-        back[b] = np.argmin(total, axis=0)
-        u = unary(b)
-        cost = u + total[back[b], np.arange(len(starts))]
+        end_of, cut_cost, carries = joins(grid.bars[b - 1][1])
+        # the cheapest figure ending at each distinct end
+        order = np.lexsort((cost, end_of))
+        best = order[np.searchsorted(end_of[order], np.arange(cut_cost.shape[0]))]
+        ending = cost[best]
+        total = ending[:, None] + cut_cost
+        came = np.argmin(total, axis=0)
+        u, speed = unary(b)
+        by_cut = total[came, np.arange(len(ustarts))][start_of] + calm(speed)
+        by_carry = np.where(carries >= 0, ending[np.maximum(carries, 0)], np.inf)
+        carry = by_carry <= by_cut
+        back[b] = np.where(carry, best[np.maximum(carries, 0)], best[came[start_of]])
+        cost = u + np.where(carry, by_carry, by_cut)
+        if not np.isfinite(cost).any():
+            raise too_short
     path = [int(np.argmin(cost))]
     for b in range(len(grid.bars) - 1, 0, -1):
         path.append(int(back[b, path[-1]]))
-    return [(int(starts[k]), n) for k, (_, n) in zip(path[::-1], grid.bars, strict=True)]
+    return [(int(starts[k]), float(ratios[k])) for k in path[::-1]]
 
 
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
@@ -284,7 +343,7 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     dances = []
     for _ in range(takes):
         bars = plan(library, grid, onset, rng, style, settings, previous)
-        figures = [Figure(s, n, grid.beats[a : a + n + 1]) for (s, n), (a, _) in zip(bars, grid.bars, strict=True)]
+        figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
@@ -292,19 +351,20 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
 
 def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,
            end_s: float) -> Report:
-    """The figures (clip, where in it, where in the song), the runs of one clip, the largest time-warp and each
-    cut's largest step (`transitions.cut_steps`)."""
+    """The figures (clip, where in it, where in the song, clip beats per song beat), the runs of one clip, the
+    largest time-warp (real time: how much faster or slower than captured a frame plays) and each cut's largest
+    step (`transitions.cut_steps`)."""
     rows, runs, warp = [], [], 0.0
     for k, f in enumerate(figures):
         clip = int(library.beat_clip[f.start])
-        lib = library.beats[f.start : f.start + f.beats + 1]
+        lib = f.frames(library)
         t0 = library.clip_starts[clip]
         song = np.clip(f.times, start_s, end_s)
-        warp = max(warp, float(np.abs(np.diff(f.times) / (np.diff(lib) / library.fps) - 1.0).max()))
+        warp = max(warp, float(np.abs(np.diff(lib) / library.fps / np.diff(f.times) - 1.0).max()))
         rows.append({"clip": library.names[clip], "clip_s": [round(float((lib[0] - t0) / library.fps), 3),
                                                               round(float((lib[-1] - t0) / library.fps), 3)],
-                     "song_s": [round(float(song[0]), 3), round(float(song[-1]), 3)]})
-        continues = k > 0 and figures[k - 1].start + figures[k - 1].beats == f.start
+                     "song_s": [round(float(song[0]), 3), round(float(song[-1]), 3)], "ratio": round(f.ratio, 3)})
+        continues = k > 0 and figures[k - 1].end == f.start
         if continues:
             runs[-1] = (runs[-1][0] + 1, runs[-1][1] + song[-1] - song[0])
         else:

@@ -48,12 +48,30 @@ HOLD_SMOOTH_FRAMES = 2.0
 
 @dataclass
 class Figure:
-    """A bar of the dance: `beats` library beats from the library beat `start`, played at song times `times`
-    ([beats + 1] seconds, one per beat and the next bar's first)."""
+    """A bar of the dance: `beats` song beats, at song times `times` ([beats + 1] seconds, one per beat and the next
+    bar's first), danced by the library's beats from the library beat `start`, `ratio` of them per song beat (2: two
+    clip beats in each song beat; 0.5: one in two; between two beats of the clip, its frames in proportion)."""
 
     start: int
     beats: int
     times: np.ndarray
+    ratio: float = 1.0
+
+    @property
+    def end(self) -> float:
+        """The library beat (maybe between two) where the figure ends: the next figure's start if it carries on."""
+        return self.start + self.ratio * self.beats
+
+    def frames(self, library: MotionLibrary) -> np.ndarray:
+        """[beats + 1]: the library frames (sub-frame) played at `times`."""
+        return beat_frames(library, self.start + self.ratio * np.arange(self.beats + 1))
+
+
+def beat_frames(library: MotionLibrary, position: np.ndarray) -> np.ndarray:
+    """Library frames (sub-frame) at beat positions that may fall between two beats (linearly between them)."""
+    lo = np.clip(np.floor(position).astype(np.int64), 0, len(library.beats) - 1)
+    hi = np.minimum(lo + 1, len(library.beats) - 1)
+    return library.beats[lo] * (1.0 - (position - lo)) + library.beats[hi] * (position - lo)
 
 
 def _sample(library: MotionLibrary, pos: np.ndarray, clip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,12 +149,12 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     for k, f in enumerate(figures):
         sel = which == k
         if sel.any():
-            pos[sel] = np.interp(t[sel], f.times, library.beats[f.start : f.start + f.beats + 1])
+            pos[sel] = np.interp(t[sel], f.times, f.frames(library))
     clip = library.beat_clip[[f.start for f in figures]][which]
     rot, root = _sample(library, pos, clip)
 
     # Runs: figures that continue one clip. Each is placed once; a cut starts a new run.
-    new_run = np.array([k == 0 or figures[k - 1].start + figures[k - 1].beats != f.start
+    new_run = np.array([k == 0 or figures[k - 1].end != f.start
                         for k, f in enumerate(figures)])
     run_of_figure = np.cumsum(new_run) - 1
     run = run_of_figure[which]

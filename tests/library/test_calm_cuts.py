@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from test_library import dancer, library_of, song
 
-from dancenet_core.library.choreography import CALM_LIMIT, Settings, entry_steps, figure_starts, plan, song_grid
+from dancenet_core.library.choreography import CALM_LIMIT, Settings, entry_steps, plan, song_grid
+from dancenet_core.library.transitions import beat_frames
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import ONSET_COL
 from dancenet_core.skeleton import JOINT_INDEX
@@ -27,17 +28,16 @@ def _cut_entries(settings: Settings) -> tuple[np.ndarray, int]:
                            for k, bpm in enumerate((100, 110, 120, 104))], ("flail", flailing(12, 110)))
     music = song(90, 110)
     grid = song_grid(music, 0.0, 90.0)
-    starts = figure_starts(library, grid.meter, None)
-    entry = dict(zip(starts.tolist(), entry_steps(library, starts), strict=True))
     flail = library.names.index("flail")
     played, into_flail = [], 0
     for seed in range(6):
         bars = plan(library, grid, music.features[:, ONSET_COL], np.random.default_rng(seed), settings=settings)
-        for (prev, n), (start, _), (a, _) in zip(bars[:-1], bars[1:], grid.bars[1:], strict=True):
-            if prev + n != start:
-                clip_beat_s = (library.beats[start + 1] - library.beats[start]) / library.fps
-                speed = clip_beat_s / (grid.beats[a + 1] - grid.beats[a])
-                played.append(entry[start] * speed)
+        for (prev, r_prev), (start, r), (_, n_prev), (a, _) in zip(bars[:-1], bars[1:], grid.bars[:-1],
+                                                                       grid.bars[1:], strict=True):
+            if prev + r_prev * n_prev != start:
+                clip_s = np.diff(beat_frames(library, np.array([start, start + r]))) / library.fps
+                speed = float(clip_s[0]) / (grid.beats[a + 1] - grid.beats[a])
+                played.append(float(entry_steps(library, np.array([start]))[0]) * speed)
                 into_flail += int(library.beat_clip[start] == flail)
     return np.array(played), into_flail
 
