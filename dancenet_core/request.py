@@ -107,6 +107,12 @@ class DanceRequest:
     root_motion: str = _option("travel", Option(
         "travel (as danced), in-place (no horizontal path, heading kept) or root-bone (a 'root' joint on the "
         "floor carries path and heading)", str, "--root-motion", "Root Motion", choices=_ROOT_CHOICES))
+    returns: str = _option("repeat", Option(
+        "where the music returns (a chorus heard again): repeat the dance of its first hearing, mirror it (left "
+        "and right swapped) or dance it anew", str, "--returns", "Returns", choices=(
+            ("repeat", "Repeat", "A returning section is danced as it was the first time"),
+            ("mirror", "Mirror", "A returning section is danced as the first time, left and right swapped"),
+            ("anew", "Anew", "Every section is danced anew"))))
     continue_from: Motion | None = None  # a dance to the same part of the song, kept up to `at_s` seconds
     at_s: float = 0.0
     engine: str = _option(DEFAULT_ENGINE, Option(
@@ -122,6 +128,11 @@ class DanceRequest:
 
     def check(self) -> None:
         """Reject what no engine can dance, whatever the song: a one-line DanceNetError that says what to do."""
+        self.check_settings()
+        check_song_path(self.song)
+
+    def check_settings(self) -> None:
+        """`check` without the song: the settings a batch gives all its songs, checked before any is read."""
         check_part(self.start_s, self.end_s)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or \
                 not 0 <= self.seed <= MAX_SEED:
@@ -141,7 +152,6 @@ class DanceRequest:
         if self.continue_from is not None and not 0 < self.at_s <= self.continue_from.duration:
             raise DanceNetError(f"the new dancing must start within the kept dance (0 to "
                                 f"{self.continue_from.duration:.2f} s), got {self.at_s}")
-        check_song_path(self.song)
 
     @property
     def sampling_temperature(self) -> float:

@@ -7,6 +7,7 @@ The table below is what `dancenet --help` lists; a command `x-y` lives in `comma
 
 COMMANDS: dict[str, str] = {
     "generate": "generate a dance for a song (BVH, .npz and a JSON summary)",
+    "batch": "dance a catalog of songs: worker processes or a Ray cluster, resumable (one folder a song)",
     "analyze": "print a song's tempo, style, beats and downbeats",
     "render": "render a motion (BVH or .npz) as a preview video with its music",
     "data": "build or inspect the training dataset",

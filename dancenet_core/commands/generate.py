@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,7 @@ from ..bvh import write_bvh
 from ..errors import DanceNetError
 from ..generate import GenerationResult, generate_dance, shape_takes
 from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
+from ..progress import StageProgress
 from ..render import render_motion
 from ..request import DanceRequest, add_options, options_from
 from ..rootmotion import read_dance_bvh, write_root_bone_bvh
@@ -46,14 +49,15 @@ def _shipped_styles() -> str:
         return "unreadable (reinstall the package)"
 
 
-def _names(stem: str, takes: int) -> list[str]:
+def names(stem: str, takes: int) -> list[str]:
+    """Each take's file stem: the song's, or `<song>_take<k>` for several takes."""
     return [stem] if takes == 1 else [f"{stem}_take{k}" for k in range(1, takes + 1)]
 
 
-def _outputs(args: argparse.Namespace, stem: str) -> list[Path]:
+def outputs(args: argparse.Namespace, stem: str) -> list[Path]:
     """Every file this run will write, so none is replaced unless the user asked."""
     suffixes = (".bvh", ".npz", ".mp4") if args.render else (".bvh", ".npz")
-    return [args.out / f"{n}{s}" for n in _names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
+    return [args.out / f"{n}{s}" for n in names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
 
 
 def _request(args: argparse.Namespace) -> DanceRequest:
@@ -77,9 +81,8 @@ def run(args: argparse.Namespace) -> int:
     request = _request(args)
     check_folder_writable(args.out)
     remove_leftovers(args.out)
-    outputs = _outputs(args, stem)
     if not args.overwrite:
-        refuse_overwrite(outputs)
+        refuse_overwrite(outputs(args, stem))
     # A bar drawn keeps its last state on a line of its own (leave=True ends it with a newline), so the summary
     # below starts its own line, also where stderr and stdout share a log; a run under `delay` draws none.
     bar = tqdm(total=100, unit="%", bar_format="{desc:<18} {bar} {percentage:3.0f}% {elapsed}", delay=0.5,
@@ -92,20 +95,38 @@ def run(args: argparse.Namespace) -> int:
             bar.set_description_str(stage, refresh=False)
         bar.update(int(100 * fraction) - bar.n)  # through update, so tqdm knows what it drew and ends that line
 
-    t0 = time.perf_counter()
     try:
-        result = generate_dance(request, progress=progress)
+        result, summary = dance_into(args, request, stem, progress)
     finally:
         bar.close()
-    result.motions = shape_takes(result.motions, request)
-    with claimed_outputs(outputs, args.overwrite) as temp:  # this run's files appear together, or none
-        summary = _write(args, stem, result, temp, t0)
     print(f"{result.style} dance, {summary['frames']} frames at {summary['fps']:g} fps "
           f"({result.tempo_bpm:.0f} BPM) in {result.timings['total_s']:.1f} s -> {args.out}")
-    for name, details in zip(_names(stem, len(result.details)), result.details, strict=True):
+    for name, details in zip(names(stem, len(result.details)), result.details, strict=True):
         if "long_run_share" in details:
             print(f"{name}: {_copied(details)}")
     return 0
+
+
+# Files a caller writes beside generate's own, in the same set (`dance_into`): their paths, and what writes
+# them, given the result as danced (before `shape_takes`, as the add-on keys it) and each path's temporary name.
+Extra = tuple[list[Path], Callable[[GenerationResult, dict[Path, Path]], None]]
+
+
+def dance_into(args: argparse.Namespace, request: DanceRequest, stem: str, progress: StageProgress | None = None,
+               extra: Extra | None = None) -> tuple[GenerationResult, dict]:
+    """Dance `request` and write generate's files for it into `args.out`, with `extra`'s, all appearing together
+    (replacing what is there only with `args.overwrite`); returns the shaped result and the summary. The one
+    path from a request to files, for `generate` and each song of `batch`."""
+    t0 = time.perf_counter()
+    result = generate_dance(request, progress=progress)
+    danced = replace(result, motions=list(result.motions))
+    result.motions = shape_takes(result.motions, request)
+    paths, write_extra = extra or ([], None)
+    with claimed_outputs(outputs(args, stem) + paths, args.overwrite) as temp:  # together, or none
+        summary = _write(args, request, stem, result, temp, t0)
+        if write_extra is not None:
+            write_extra(danced, temp)
+    return result, summary
 
 
 def _copied(details: dict) -> str:
@@ -116,21 +137,22 @@ def _copied(details: dict) -> str:
             f"({details['longest_run_s']:.1f} s); largest time-warp {100 * details['max_warp']:.0f}%")
 
 
-def _write(args: argparse.Namespace, stem: str, result: GenerationResult, temp: dict[Path, Path],
-           t0: float) -> dict:
-    """Write every output to its temporary path in `temp` (keyed by its final path); returns the summary."""
+def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: GenerationResult,
+           temp: dict[Path, Path], t0: float) -> dict:
+    """Write every output to its temporary path in `temp` (keyed by its final path); returns the summary, which
+    names the song as `args.song` gives it (batch on a cluster reads a copy, `request.song`)."""
     write_dance_bvh = write_root_bone_bvh if args.root_motion == "root-bone" else write_bvh
     files = []
     t = time.perf_counter()
-    for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
+    for name, motion in zip(names(stem, len(result.motions)), result.motions, strict=True):
         write_dance_bvh(temp[args.out / f"{name}.bvh"], motion)
         motion.save(temp[args.out / f"{name}.npz"])
         files += [f"{name}.bvh", f"{name}.npz"]
     result.timings["writing_s"] = time.perf_counter() - t
     if args.render:
         t = time.perf_counter()
-        for name, motion in zip(_names(stem, len(result.motions)), result.motions, strict=True):
-            render_motion(motion, temp[args.out / f"{name}.mp4"], audio=args.song, audio_start=result.start_s)
+        for name, motion in zip(names(stem, len(result.motions)), result.motions, strict=True):
+            render_motion(motion, temp[args.out / f"{name}.mp4"], audio=request.song, audio_start=result.start_s)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
     result.timings["total_s"] = time.perf_counter() - t0
