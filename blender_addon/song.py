@@ -32,6 +32,10 @@ def check_song(path: str | Path) -> Path:
     if not str(path).strip():
         raise DanceNetError("No audio file chosen: pick a song file in the DanceNet panel")
     p = Path(bpy.path.abspath(str(path))).expanduser()
+    shown = str(p).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    if shown != str(p):  # bytes that are not UTF-8, kept by Python as lone surrogates, which Blender refuses
+        raise DanceNetError(f"Blender takes only UTF-8 file names: rename '{Path(shown).name}' (or its folder) "
+                            "and pick it again")
     if p.is_dir():
         raise DanceNetError(f"{p} is a folder, not an audio file: give the path of a song file")
     if not p.is_file():

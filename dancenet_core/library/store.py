@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import zipfile
 from dataclasses import dataclass
 from functools import cached_property
@@ -21,7 +22,7 @@ from ..motion import Motion
 from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis
 
-LIBRARY_VERSION = "motion-library-1"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-2"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
@@ -33,7 +34,9 @@ class MotionLibrary:
     """rotations [N, 55, 3] and root_positions [N, 3] of all clips end to end (clip c: frames clip_starts[c] to
     clip_starts[c + 1]); per beat (all clips, in order): its frame (sub-frame, counted from the clip's start plus
     clip_starts), clip, downbeat flag, boundary features [B, FEATURE_DIM] and energy (mean joint speed to the
-    next beat, m/s); per clip: name, style, tempo and meter; offsets: the skeleton every dance is built on."""
+    next beat, m/s); per clip: name, style, tempo and meter, how sure the analysis is of them (`confidence`, 0-1)
+    and what they were read from (`source`: the motion, the style's meter, the manifest...); offsets: the skeleton
+    every dance is built on."""
 
     rotations: np.ndarray
     root_positions: np.ndarray
@@ -48,6 +51,8 @@ class MotionLibrary:
     downbeat: np.ndarray
     features: np.ndarray
     energy: np.ndarray
+    confidence: np.ndarray
+    source: list[str]
     fps: float = LIBRARY_FPS
     notes: tuple[str, ...] = ()  # what the build left out, one line each
 
@@ -110,6 +115,8 @@ class MotionLibrary:
             downbeat=np.concatenate([a.downbeat for *_, a in clips]).astype(bool),
             features=np.concatenate([a.features for *_, a in clips]).astype(np.float32).reshape(-1, FEATURE_DIM),
             energy=np.concatenate([a.energy for *_, a in clips]).astype(np.float32),
+            confidence=np.array([a.confidence for *_, a in clips], dtype=np.float64),
+            source=[a.source for *_, a in clips],
             notes=notes,
         )
 
@@ -117,13 +124,14 @@ class MotionLibrary:
         """The arrays as an .npz; `compact` (a library that ships) stores the joint rotations as float16
         (0.002 rad apart at most) and compresses, for about a third of the bytes; `load` reads either."""
         meta = {"version": LIBRARY_VERSION, "fps": self.fps, "names": self.names, "styles": self.styles,
-                "notes": list(self.notes)}
+                "source": self.source, "notes": list(self.notes)}
         with atomic_open(path, "wb") as f:
             (np.savez_compressed if compact else np.savez)(
                 f, rotations=self.rotations.astype(np.float16) if compact else self.rotations,
                 root_positions=self.root_positions, offsets=self.offsets, clip_starts=self.clip_starts,
                 tempo_bpm=self.tempo_bpm, meter=self.meter, beats=self.beats, beat_clip=self.beat_clip,
-                downbeat=self.downbeat, features=self.features, energy=self.energy, meta=np.array(json.dumps(meta)))
+                downbeat=self.downbeat, features=self.features, energy=self.energy, confidence=self.confidence,
+                meta=np.array(json.dumps(meta)))
 
     @classmethod
     def load(cls, path: str | Path) -> MotionLibrary:
@@ -135,13 +143,14 @@ class MotionLibrary:
                     raise ValueError(f"a library of version {meta.get('version')}")
                 lib = cls(z["rotations"].astype(np.float32), z["root_positions"], z["offsets"], z["clip_starts"],
                           list(meta["names"]), list(meta["styles"]), z["tempo_bpm"], z["meter"], z["beats"],
-                          z["beat_clip"], z["downbeat"], z["features"], z["energy"], float(meta["fps"]),
-                          tuple(meta["notes"]))
+                          z["beat_clip"], z["downbeat"], z["features"], z["energy"], z["confidence"],
+                          list(meta["source"]), float(meta["fps"]), tuple(meta["notes"]))
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise ValueError(f"{path}: not a motion library ({e})") from e
         n, b = len(lib.rotations), len(lib.beats)
         if (lib.rotations.shape[1:] != (lib.offsets.shape[0], 3) or lib.root_positions.shape != (n, 3)
                 or lib.clip_starts[-1] != n or len(lib.names) + 1 != len(lib.clip_starts)
+                or not len(lib.names) == len(lib.confidence) == len(lib.source)
                 or lib.features.shape != (b, FEATURE_DIM) or not len(lib.beat_clip) == len(lib.downbeat) == b):
             raise ValueError(f"{path}: a motion library whose arrays do not fit each other")
         return lib
@@ -159,7 +168,7 @@ def folder_key(folder: str | Path) -> str:
     h = hashlib.sha256(LIBRARY_VERSION.encode())
     for p in [*clip_files(folder), folder / "manifest.csv"]:
         if p.is_file():
-            h.update(str(p.relative_to(folder)).encode() + b"\0")
+            h.update(os.fsencode(p.relative_to(folder)) + b"\0")  # bytes: a name need not be UTF-8
             h.update(hashlib.sha256(p.read_bytes()).digest())
     return h.hexdigest()[:32]
 

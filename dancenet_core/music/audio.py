@@ -9,6 +9,7 @@ extension leaves that wheel out, by Blender's own audio module (`aud`, built on 
 
 from __future__ import annotations
 
+import os
 import subprocess
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
@@ -80,7 +81,8 @@ def load_audio(path: str | Path, sample_rate: int = MADMOM_SAMPLE_RATE) -> Audio
     import soundfile as sf  # here, not at the top: training on a GPU machine imports this module without it
 
     try:
-        with sf.SoundFile(str(path)) as f:
+        # bytes on POSIX: a name that is not UTF-8 (kept by Python as lone surrogates) is soundfile's str error
+        with sf.SoundFile(str(path) if os.name == "nt" else os.fsencode(path)) as f:
             source_rate, channels = int(f.samplerate), int(f.channels)
             _check_rate(path, source_rate)
             mono = _mono(_soundfile_blocks(f), f.frames)

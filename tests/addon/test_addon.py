@@ -242,6 +242,17 @@ def test_takes_become_separate_actions(scene, addon, song):
     assert bpy.data.objects["DanceNet Dancer"].animation_data.action.name.endswith("take 1")
 
 
+@pytest.mark.skipif(os.name != "posix" or sys.platform == "darwin", reason="a name that is not UTF-8 needs a file "
+                    "system that stores bytes")
+def test_a_song_whose_name_is_not_utf8_is_one_line(scene, addon, song, capsys):
+    """A Latin-1 `caf\\xe9.wav` from an old archive: Blender's strips and names take UTF-8 only, so Generate
+    Dance says to rename it, naming it (the byte that is not UTF-8 as U+FFFD), before any work."""
+    latin1 = song.rename(song.with_name(os.fsdecode(b"caf\xe9.wav")))
+    with pytest.raises(RuntimeError, match="rename 'caf\ufffd.wav'"):
+        generate(scene, latin1)
+    assert not bpy.data.actions and not bpy.data.sounds
+
+
 def test_an_empty_sequencer_is_read_through_strips(scene, addon):
     """Blender 5.0 has only `strips`, and an empty collection is falsy: it must not fall back to `sequences`."""
     scene.sequence_editor_create()

@@ -4,6 +4,9 @@ forward at a known tempo, so the beats, bars and cuts are known; and bad librari
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +21,7 @@ from dancenet_core.generate import generate_dance, shape_takes
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
-from dancenet_core.library.store import MotionLibrary
+from dancenet_core.library.store import MotionLibrary, library_path
 from dancenet_core.library.transitions import Figure, cut_steps, hold_stance, render
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
@@ -368,3 +371,37 @@ def test_continue_from_here_keeps_the_kept_frames_and_joins_without_a_jump(tmp_p
         assert (step[j - 2 : j + 12] <= 1.2 * largest).all()
     assert not np.allclose(one.rotations[j:], other.rotations[j:])
     assert not np.allclose(one.rotations[j:], first.rotations[j:])
+
+
+@pytest.mark.skipif(os.name != "posix" or sys.platform == "darwin", reason="a name that is not UTF-8 needs a file "
+                    "system that stores bytes")
+def test_a_clip_whose_name_is_not_utf8_is_built_and_named_as_it_is(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture) -> None:
+    """A Latin-1 `caf\\xe9.bvh` from an old archive: the folder's content key hashes the name's bytes, the
+    library dances from it, and what is said about it shows the name as it is (no UnicodeEncodeError)."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "old archive"
+    folder.mkdir()
+    write_bvh(folder / os.fsdecode(b"caf\xe9.bvh"), dancer(20, 100))
+    write_bvh(folder / "two.bvh", dancer(20, 110, phase=1.0))
+    assert _cli("library", "build", str(folder)) == 0, capsys.readouterr().err
+    library, _ = build_library(folder)
+    assert sorted(library.names) == sorted([os.fsdecode(b"caf\xe9.bvh"), "two.bvh"])
+    (folder / os.fsdecode(b"caf\xe9.bvh")).rename(folder / "cafe.bvh")  # another name: another library
+    assert not library_path(folder).is_file()
+
+
+@pytest.mark.skipif(os.name != "posix" or sys.platform == "darwin", reason="a name that is not UTF-8 needs a file "
+                    "system that stores bytes")
+def test_a_clip_left_out_is_named_by_its_own_bytes(tmp_path: Path) -> None:
+    """In a terminal whose output is strict UTF-8, the line about a Latin-1 clip that cannot be read shows its
+    name's bytes as `ls` would, not a UnicodeEncodeError traceback."""
+    folder = tmp_path / "old archive"
+    folder.mkdir()
+    (folder / os.fsdecode(b"caf\xe9.bvh")).write_text("not a clip")
+    write_bvh(folder / "two.bvh", dancer(20, 110))
+    env = os.environ | {"DANCENET_CACHE": str(tmp_path / "cache"), "PYTHONIOENCODING": "utf-8:strict"}
+    out = subprocess.run([sys.executable, "-m", "dancenet_core.cli", "library", "build", str(folder)], env=env,
+                         capture_output=True)
+    assert out.returncode == 0 and b"Traceback" not in out.stderr, out.stderr.decode(errors="replace")
+    assert b"left out " + os.fsencode(folder) + b"/caf\xe9.bvh" in out.stdout

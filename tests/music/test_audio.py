@@ -3,6 +3,7 @@ gives one clear line."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -121,6 +122,19 @@ def _check_error(path: Path, *words: str) -> None:
     assert "\n" not in msg
     for w in words:
         assert w in msg
+
+
+@pytest.mark.skipif(sys.platform in ("win32", "darwin"), reason="a name that is not UTF-8 needs a file system "
+                    "that stores bytes")
+def test_a_song_whose_name_is_not_utf8_is_read(tmp_path: Path) -> None:
+    """`caf\\xe9.wav` from an old Latin-1 archive: decoded like any other song (soundfile is given the name's
+    bytes, not a str it would encode strictly)."""
+    wav, _ = encoded_click_track(tmp_path, ())
+    latin1 = tmp_path / os.fsdecode(b"caf\xe9.wav")
+    wav.rename(latin1)
+    plain = tmp_path / "cafe.wav"
+    shutil.copyfile(latin1, plain)
+    np.testing.assert_array_equal(load_audio(latin1).samples, load_audio(plain).samples)
 
 
 def test_missing_file(tmp_path: Path) -> None:
