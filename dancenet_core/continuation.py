@@ -41,7 +41,12 @@ def join_kept(kept: Motion, feats: np.ndarray, k: int, skeleton: Skeleton) -> Mo
     """Kept frames before `k` unchanged, then the new ones (the dance's features [T, D], kept frames included,
     decoded from where kept frame k - 3 stands), offset by the kept frames' difference from the new dance."""
     h = min(k, DIFFERENCES)
-    new = decode(feats[k - h :], kept.fps, skeleton, *start_pose(kept[k - h : k - h + 1]))
+    return splice(kept, decode(feats[k - h :], kept.fps, skeleton, *start_pose(kept[k - h : k - h + 1])), k, h)
+
+
+def splice(kept: Motion, new: Motion, k: int, h: int) -> Motion:
+    """`kept`'s frames before `k` unchanged, then `new`'s after its first `h` (which stand for kept frames
+    k - h .. k - 1), offset by how far those h frames are from the kept ones, the offset fading out."""
     rot, root = new.rotations[h:].copy(), new.root_positions[h:].copy()
     # How far the kept frames are from the new dance's version of them (rotations as left offsets, rotation
     # vectors: small here), faded out over the first new frames.
@@ -52,7 +57,7 @@ def join_kept(kept: Motion, feats: np.ndarray, k: int, skeleton: Skeleton) -> Mo
     rot[:n] = (offsets * Rotation.from_rotvec(rot[:n].reshape(-1, 3))).as_rotvec().reshape(n, -1, 3)
     root[:n] += _fade(n, kept.root_positions[k - h : k] - new.root_positions[:h])
     return Motion(np.concatenate([kept.rotations[:k], rot]), np.concatenate([kept.root_positions[:k], root]),
-                  kept.fps, skeleton)
+                  kept.fps, new.skeleton)
 
 
 def keep_original(kept: Motion, dance: Motion, join_s: float) -> Motion:

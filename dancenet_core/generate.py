@@ -16,12 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from .continuation import keep_original
-from .engines import Engine, get_engine
+from .engines import Engine, Takes, get_engine
 from .errors import GenerationCancelled
 from .motion import Motion
 from .music.features import analyze_music
+from .music.form import SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, DanceRequest
+from .returns import dance_returns
 from .rootmotion import apply_mode
 
 
@@ -38,6 +40,7 @@ class GenerationResult:
     contacts: list[np.ndarray] = field(default_factory=list)  # [T, 2] predicted foot contacts per take
     start_s: float = 0.0  # where the dance starts in the song; beat times count from there
     details: list[dict] = field(default_factory=list)  # per take, the engine's report on it (`Takes.details`)
+    form: SongForm | None = None  # the song's sections (times in the song, not the part)
 
 
 def check_request(request: DanceRequest) -> Engine:
@@ -70,6 +73,10 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
         raise GenerationCancelled
     start, end = request.part(analysis.duration_s)
     takes = engine.dance(request, analysis, report, cancelled)
+    t = time.perf_counter()
+    form = song_form(analysis)
+    takes = _with_returns(takes, form, start, request)
+    takes.timings["form_s"] = time.perf_counter() - t
     report("done", 1.0)
 
     def within(times: np.ndarray) -> np.ndarray:
@@ -80,8 +87,22 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
         downbeat_times=within(analysis.downbeat_times), tempo_bpm=analysis.tempo_bpm, duration_s=end - start,
         style=takes.style, style_probabilities=takes.style_probabilities,
         timings={"analysis_s": analysis_s, **takes.timings}, contacts=takes.contacts, start_s=start,
-        details=takes.details,
+        details=takes.details, form=form,
     )
+
+
+def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRequest) -> Takes:
+    """The takes with the song's returning sections danced as `request.returns` says (`returns.dance_returns`),
+    their foot contacts following the frames."""
+    keep = request.at_s if request.continue_from is not None else 0.0
+    motions, contacts = [], []
+    for k, motion in enumerate(takes.motions):
+        out, frame_map = dance_returns(motion, form, start_s, request.returns, keep)
+        motions.append(out)
+        if k < len(takes.contacts):
+            contacts.append(takes.contacts[k][np.round(frame_map).astype(int)])
+    takes.motions, takes.contacts = motions, contacts
+    return takes
 
 
 def shape_takes(motions: list[Motion], request: DanceRequest) -> list[Motion]:

@@ -89,15 +89,16 @@ class SongForm:
 
 
 def bar_grid(analysis: MusicAnalysis) -> np.ndarray:
-    """Bar boundaries [B + 1] in seconds: 0, the downbeats after the first bar's, and the song's end. The
-    pickup before the first downbeat belongs to the first bar; a last bar shorter than half a bar joins the one
+    """Bar boundaries [B + 1] in seconds: 0, the downbeats, and the song's end. A pickup before the first
+    downbeat shorter than half a bar belongs to the first bar, and so does a last bar that short to the one
     before."""
     down = np.asarray(analysis.downbeat_times, dtype=float)
     inner = down[(down > 0.0) & (down < analysis.duration_s)]
     if len(inner) < 2:
         return np.array([0.0, analysis.duration_s])
-    edges = np.concatenate([[0.0], inner[1:], [analysis.duration_s]])
-    if len(edges) > 2 and edges[-1] - edges[-2] < 0.5 * np.median(np.diff(inner)):
+    half = 0.5 * np.median(np.diff(inner))
+    edges = np.concatenate([[0.0], inner[1:] if inner[0] < half else inner, [analysis.duration_s]])
+    if len(edges) > 2 and edges[-1] - edges[-2] < half:
         edges = np.delete(edges, -2)
     return edges
 

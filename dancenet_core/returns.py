@@ -1,0 +1,124 @@
+"""Returns danced again: where the music comes back (the song's form, `music.form`), the dance comes back too.
+
+Any engine's take is rewritten phrase by phrase after it is danced: a phrase whose music repeats an earlier one
+takes the frames danced there, bar by bar (each bar's time stretched onto the new bar's, as the tempo may
+drift), either as they were ("repeat") or left and right swapped ("mirror"). The copy is laid where the dancer
+stands and faces when the phrase begins (the source's heading turned onto the dancer's, its path moved to the
+dancer's place), and the dance after it is carried on from where the copy ends (turned and moved rigidly), so
+the path and the heading never jump. Both joins are blended as Continue From Here blends (`continuation.splice`:
+the offset's value, slope and curvature fade to nothing over `continuation.BLEND_S`).
+
+Phrases are taken in order and copy from the dance as rewritten so far, so a third hearing repeats the first as
+it finally stands. A phrase whose source lies before the danced part (a part of the song), or within the frames
+kept by a continued dance, is danced anew.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .continuation import DIFFERENCES, splice
+from .motion import Motion
+from .music.form import SongForm
+from .representation import heading_frames
+
+RETURN_MODES = ("repeat", "mirror", "anew")
+
+
+def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str,
+                  keep_until_s: float = 0.0) -> tuple[Motion, np.ndarray]:
+    """`motion` (danced from `start_s` seconds into the song) with each returning phrase danced as its first
+    hearing, and the source frame of every output frame [T] (its own index where nothing was copied), for
+    whatever else follows the frames (the predicted foot contacts)."""
+    frame_map = np.arange(motion.num_frames, dtype=float)
+    if mode == "anew":
+        return motion, frame_map
+    edges = form.bar_starts - start_s  # bar boundaries in the dance's time
+    fps = motion.fps
+    for target, target_end, source in _copies(form):
+        t0, t1 = edges[target] * fps, edges[target_end] * fps
+        s0 = edges[source] * fps
+        n_bars = target_end - target
+        if s0 < 0 or t0 < max(keep_until_s * fps, s0 + DIFFERENCES) or t0 >= motion.num_frames - 1:
+            continue
+        first, last = int(np.ceil(t0)), min(int(np.ceil(t1)), motion.num_frames)
+        if last - first < 2:
+            continue
+        # Source time of each target frame, bar against bar; the DIFFERENCES frames before the phrase too, so
+        # the join can compare the copy's lead-in with the frames the dancer just danced.
+        frames = np.arange(first - DIFFERENCES, last, dtype=float)
+        src_frames = np.interp(frames, edges[target:target + n_bars + 1] * fps, edges[source:source + n_bars + 1] * fps,
+                               left=np.nan)
+        lead = np.isnan(src_frames)
+        src_frames[lead] = s0 - (first - frames[lead]) * (edges[source + 1] - edges[source]) / (
+            edges[target + 1] - edges[target])
+        copy = _sample(motion, src_frames)
+        if mode == "mirror":
+            copy = copy.mirrored()
+        motion = _lay_copy(motion, copy, first, last)
+        frame_map[first:last] = frame_map[np.clip(np.round(src_frames[DIFFERENCES:]).astype(int), 0,
+                                                  motion.num_frames - 1)]
+    return motion, frame_map
+
+
+def _copies(form: SongForm) -> list[tuple[int, int, int]]:
+    """(first bar, end bar, source's first bar) for each run of phrases that repeats consecutive earlier bars."""
+    out: list[tuple[int, int, int]] = []
+    n_bars = len(form.bar_starts) - 1
+    for k, phrase in enumerate(form.phrases):
+        end = form.phrases[k + 1].first_bar if k + 1 < len(form.phrases) else n_bars
+        if phrase.source_bar is None:
+            continue
+        end = min(end, phrase.first_bar + (phrase.first_bar - phrase.source_bar))  # never reads what it writes
+        if out and out[-1][1] == phrase.first_bar and out[-1][2] + (out[-1][1] - out[-1][0]) == phrase.source_bar:
+            out[-1] = (out[-1][0], end, out[-1][2])
+        else:
+            out.append((phrase.first_bar, end, phrase.source_bar))
+    return out
+
+
+def _sample(motion: Motion, frames: np.ndarray) -> Motion:
+    """The motion at fractional frames (rotations slerped, the root linear), as a Motion; frames before the
+    first carry on its first step backwards (a phrase copied from the dance's start still has a lead-in that
+    moves as the dance moves)."""
+    frames = np.minimum(frames, motion.num_frames - 1)
+    lo = np.clip(np.floor(frames).astype(int), 0, max(0, motion.num_frames - 2))
+    hi = np.minimum(lo + 1, motion.num_frames - 1)
+    w = (frames - lo)[:, None]
+    r0 = Rotation.from_rotvec(motion.rotations[lo].reshape(-1, 3))
+    r1 = Rotation.from_rotvec(motion.rotations[hi].reshape(-1, 3))
+    step = (r0.inv() * r1).as_rotvec().reshape(len(frames), -1, 3) * w[:, :, None]
+    rots = (r0 * Rotation.from_rotvec(step.reshape(-1, 3))).as_rotvec().reshape(len(frames), -1, 3)
+    root = motion.root_positions[lo] * (1 - w) + motion.root_positions[hi] * w
+    return Motion(rots, root, motion.fps, motion.skeleton)
+
+
+def _placed(piece: Motion, at: Motion, k: int) -> Motion:
+    """`piece` turned about the vertical and moved across the floor so that its frame k stands where `at`'s
+    frame k stands and faces where it faces (its height and its pose untouched)."""
+    yaw = heading_frames(at)[k] - heading_frames(piece)[k]
+    turn = Rotation.from_euler("y", yaw)
+    root = piece.root_positions - piece.root_positions[k] * np.array([1.0, 0.0, 1.0])
+    root = turn.apply(root) + at.root_positions[k] * np.array([1.0, 0.0, 1.0])
+    rots = piece.rotations.copy()
+    rots[:, 0] = (turn * Rotation.from_rotvec(rots[:, 0])).as_rotvec()
+    return Motion(rots, root, piece.fps, piece.skeleton)
+
+
+def _lay_copy(motion: Motion, copy: Motion, first: int, last: int) -> Motion:
+    """`motion` with frames [first, last) replaced by `copy` (whose first DIFFERENCES frames stand for the
+    frames before `first`), joined on both sides."""
+    h = DIFFERENCES
+    lead_in = motion[first - h:first]
+    copy = _placed(copy, Motion(np.concatenate([lead_in.rotations, copy.rotations[h:]]),
+                                np.concatenate([lead_in.root_positions, copy.root_positions[h:]]),
+                                motion.fps, motion.skeleton), h - 1)
+    joined = splice(motion[:first], copy, first, h)
+    if last >= motion.num_frames:
+        return joined
+    rest = motion[last - h:]
+    rest = _placed(rest, Motion(np.concatenate([joined.rotations[-h:], rest.rotations[h:]]),
+                                np.concatenate([joined.root_positions[-h:], rest.root_positions[h:]]),
+                                motion.fps, motion.skeleton), h - 1)
+    return splice(joined, rest, last, h)

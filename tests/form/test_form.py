@@ -1,0 +1,137 @@
+"""The song's form (music/form.py) and returns danced again (returns.py), on made-up analyses and motions, and
+with both engines on a song arranged A B A C A B from 8-bar sections of real training songs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from dancenet_core.evaluation.form import body_poses, return_likeness
+from dancenet_core.generate import generate_dance
+from dancenet_core.motion import Motion
+from dancenet_core.music.features import analyze_music
+from dancenet_core.music.form import song_form
+from dancenet_core.representation import heading_frames
+from dancenet_core.request import DanceRequest
+from dancenet_core.returns import dance_returns
+from tests.made_up import analysis, data_root
+
+BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s
+
+
+def arranged_features(form: str, bars: int = 8, seed: int = 0) -> np.ndarray:
+    """Features at 10 fps for sections in the order `form` (a letter per section of `bars` bars): each letter's
+    bars have chroma and onsets of their own, the same each time the letter comes back (with a little noise)."""
+    rng = np.random.default_rng(seed)
+    music = {c: rng.random((bars * BAR_FRAMES, 15)) for c in sorted(set(form))}
+    x = np.concatenate([music[c] + 0.05 * rng.random(music[c].shape) for c in form]).astype(np.float32)
+    return x
+
+
+def test_form_of_a_made_up_song_finds_its_sections_and_returns():
+    form = song_form(analysis(arranged_features("ABACAB")))
+    assert form.labels == "ABACAB"
+    assert [s.name for s in form.sections] == ["A1", "B1", "A2", "C1", "A3", "B2"]
+    assert [s.first_bar for s in form.sections] == [0, 8, 16, 24, 32, 40]
+    assert all(s.match > 0.8 for s in form.sections)
+
+
+def test_a_song_without_returns_is_danced_unchanged():
+    form = song_form(analysis(arranged_features("ABCDEF")))
+    assert len(set(form.labels)) == len(form.labels)  # nothing returns
+    assert all(p.source_bar is None for p in form.phrases)
+    motion = wandering_motion(form.bar_starts[-1])
+    out, frame_map = dance_returns(motion, form, 0.0, "repeat")
+    assert out is motion and np.array_equal(frame_map, np.arange(motion.num_frames))
+
+
+def wandering_motion(seconds: float, fps: float = 25.0, seed: int = 0) -> Motion:
+    """A smooth made-up dance that travels where it faces and turns: every joint's rotation a slow sine."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * fps))[:, None, None] / fps
+    rot = 0.3 * np.sin(2 * np.pi * rng.uniform(0.2, 1.5, (1, 55, 3)) * t + rng.uniform(0, 6, (1, 55, 3)))
+    tt = t[:, 0, 0]
+    heading = 0.3 * tt + 0.5 * np.sin(0.7 * tt)
+    rot[:, 0] = [0.0, 1.0, 0.0] * heading[:, None]
+    speed = 0.5 + 0.2 * np.sin(1.3 * tt)  # forward, in the dancer's own frame
+    step = np.stack([np.sin(heading) * speed, np.zeros_like(tt), np.cos(heading) * speed], -1) / fps
+    root = np.cumsum(step, axis=0) + [0.0, 0.9, 0.0]
+    root[:, 1] += 0.02 * np.sin(3 * tt)
+    return Motion(rot, root, fps)
+
+
+@pytest.mark.parametrize("mode", ["repeat", "mirror"])
+def test_returns_are_danced_as_their_first_hearing_and_the_joins_do_not_jump(mode):
+    form = song_form(analysis(arranged_features("ABACAB")))
+    motion = wandering_motion(form.bar_starts[-1])
+    out, _map = dance_returns(motion, form, 0.0, mode)
+    fps = motion.fps
+    source = motion.mirrored() if mode == "mirror" else motion
+    poses, src_poses = body_poses(out.positions(), heading_frames(out)), body_poses(source.positions(),
+                                                                                       heading_frames(source))
+    a1, a2 = slice(int(2 * fps), int(14 * fps)), slice(int(34 * fps), int(46 * fps))  # inside, clear of the blends
+    assert np.abs(poses[a2] - src_poses[a1]).max() < 1e-6  # A2's bars are A1's, pose for pose
+    # The root path and the heading never jump: no frame-to-frame step beyond the dance's own largest.
+    step = np.linalg.norm(np.diff(out.root_positions, axis=0), axis=1)
+    own = np.linalg.norm(np.diff(motion.root_positions, axis=0), axis=1)
+    assert step.max() < 1.5 * own.max()
+    assert np.abs(np.diff(heading_frames(out))).max() < 1.5 * np.abs(np.diff(heading_frames(motion))).max() + 0.02
+    # Different sections stay as danced (B1 before any copy).
+    assert np.allclose(out.rotations[int(17 * fps):int(31 * fps)], motion.rotations[int(17 * fps):int(31 * fps)])
+    if mode == "repeat":
+        assert return_likeness(out.positions(), heading_frames(out), fps, form) < 0.1
+        assert return_likeness(motion.positions(), heading_frames(motion), fps, form) > 0.5
+
+
+def test_returns_before_a_continued_dances_join_are_left_as_danced():
+    form = song_form(analysis(arranged_features("ABACAB")))
+    motion = wandering_motion(form.bar_starts[-1])
+    out, _map = dance_returns(motion, form, 0.0, "repeat", keep_until_s=40.0)  # A2 (32-48 s) starts before 40 s
+    assert np.array_equal(out.rotations[: int(64 * motion.fps)], motion.rotations[: int(64 * motion.fps)])
+    assert not np.allclose(out.rotations[int(66 * motion.fps):], motion.rotations[int(66 * motion.fps):])
+
+
+def test_anew_leaves_the_dance_alone():
+    form = song_form(analysis(arranged_features("ABACAB")))
+    motion = wandering_motion(form.bar_starts[-1])
+    out, _map = dance_returns(motion, form, 0.0, "anew")
+    assert out is motion
+
+
+TRAINING_SONGS = ("DANCE_W_1", "DANCE_W_2", "DANCE_W_4")  # three waltzes of the training split
+
+
+@pytest.fixture(scope="module")
+def arranged_song(tmp_path_factory) -> Path:
+    """A B A C A B from the 8 bars after the 4th downbeat of three training waltzes, cut on their downbeats."""
+    folder = data_root() / "dance_with_melody"
+    if not all((folder / f"{s}.ogg").is_file() for s in TRAINING_SONGS):
+        pytest.skip("the Dance with Melody songs are not here")
+    parts = {}
+    for letter, name in zip("ABC", TRAINING_SONGS, strict=True):
+        down = analyze_music(folder / f"{name}.ogg").downbeat_times
+        audio, sr = sf.read(str(folder / f"{name}.ogg"), dtype="float32")
+        parts[letter] = audio[int(down[4] * sr):int(down[12] * sr)]
+    path = tmp_path_factory.mktemp("form") / "abacab.wav"
+    sf.write(str(path), np.concatenate([parts[c] for c in "ABACAB"]), sr)
+    return path
+
+
+def test_form_of_real_music_arranged_abacab(arranged_song):
+    form = song_form(analyze_music(arranged_song))
+    assert form.labels == "ABACAB"
+    assert [s.bars for s in form.sections] == [8] * 6
+
+
+@pytest.mark.parametrize("engine", ["dancenet", "library"])
+def test_both_engines_dance_returns_again_with_the_real_model(arranged_song, engine):
+    likeness = {}
+    for mode in ("repeat", "anew"):
+        result = generate_dance(DanceRequest(arranged_song, engine=engine, returns=mode, seed=1))
+        m = result.motions[0]
+        likeness[mode] = return_likeness(m.positions(), heading_frames(m), m.fps, result.form, result.start_s)
+    assert likeness["repeat"] < 0.4, likeness
+    assert likeness["anew"] > 0.6, likeness
