@@ -15,6 +15,7 @@ from ..engines.styles import load_style_model
 from ..errors import DanceNetError
 from ..music.audio import load_audio
 from ..music.features import analyze_music
+from ..music.form import song_form
 
 # Songs longer than this get a progress bar; shorter ones finish before a bar would be worth reading.
 PROGRESS_BAR_MIN_S = 60.0
@@ -52,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     style = model.classify(analysis)
+    form = song_form(analysis)
     elapsed = time.time() - t0
     probs = ", ".join(
         f"{s} {p:.2f}" for s, p in sorted(zip(style.styles, style.probabilities, strict=True), key=lambda sp: -sp[1])
@@ -61,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"style:     {style.style} ({probs})")
     print(f"beats:     {len(analysis.beat_times)}")
     print(f"downbeats: {len(analysis.downbeat_times)}")
+    print(f"form:      {' '.join(f'{s.name} {s.start_s:.1f}s' for s in form.sections)}")
     print(f"time:      {elapsed:.1f} s")
     if args.json:
         out = {
@@ -70,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
             "style": style.to_dict(),
             "beat_times": [round(float(t), 3) for t in analysis.beat_times],
             "downbeat_times": [round(float(t), 3) for t in analysis.downbeat_times],
+            "form": form.to_dict(),
             "features": {"shape": list(analysis.features.shape), "fps": analysis.fps},
             "seconds": round(elapsed, 2),
         }
