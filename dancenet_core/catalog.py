@@ -6,10 +6,12 @@ what a catalog needs around it:
 
 - isolation: a song that fails (a bad file, an exception, a worker process killed by the system) is reported
   and the others go on;
-- resuming: a song folder holds a record (`RECORD`) of the request its files were made for (a hash of the
-  song's bytes, its settings and the weights' bytes: `request_id`), written after the files, so a song whose
-  files are all there for the same request is skipped and any other (never started, cut off by a kill, made
-  for other settings) is made again; a killed run leaves whole files only (each is renamed into place);
+- resuming: each song folder has a record in OUT/.batch/ of the song and the request its files were made for
+  (a hash of the song's bytes, its settings and the weights' bytes: `request_id`), marked complete after the
+  files, so a song whose files are all there for the same request is skipped and any other (never started,
+  cut off by a kill, made for other settings) is made again; a killed run leaves whole files only (each is
+  renamed into place);
+- the user's files: a folder with no record of ours is never written into; the song takes the next free name;
 - a status table, `batch.csv` and `batch.json` in the output folder, rewritten whole as each song ends;
 - where the songs run: in this process (`inline`: Blender), in `--jobs` worker processes of this machine
   (`local`), or as tasks on a Ray cluster (`ray`), where the driver reads each song and sends its bytes, and
@@ -45,7 +47,7 @@ from .music.audio import FFMPEG_FORMATS, SUPPORTED_FORMATS
 from .outputs import check_folder_writable, claimed_outputs, safe_stem
 from .request import check_song_path, options
 
-RECORD = ".batch.json"  # in each song's folder: the request its files were made for
+RECORDS = ".batch"  # in the output folder: <song folder>.json, the song and request its files were made for
 STATUS_FILES = ("batch.csv", "batch.json")
 COLUMNS = ("song", "folder", "status", "style", "tempo_bpm", "frames", "duration_s", "takes", "seconds",
            "peak_memory_mb", "error")
@@ -59,8 +61,8 @@ Where = Literal["inline", "local", "ray"]
 @dataclass(frozen=True)
 class CatalogSong:
     """One song of a catalog: `label` as the user named it (the summaries say it), `path` where it is read (a
-    cluster task reads a copy), `folder` its output folder's name, `settings` its own request options over the
-    batch's."""
+    cluster task reads a copy), `folder` its output folder's name (as read: its name made safe; as run: the
+    folder it was given), `settings` its own request options over the batch's."""
 
     label: str
     path: Path
@@ -91,17 +93,14 @@ class SongTask(Protocol):
 def read_catalog(sources: Sequence[Path]) -> list[CatalogSong]:
     """The songs `sources` name, in order: an audio file; a folder (its audio files, subfolders included, by
     path); a list, a text file with a path a line (`#` comments) or a CSV with a `song` column and a column per
-    setting (empty cells keep the batch's). Paths in a list are relative to its folder. Each song's folder is
-    its name made safe (`outputs.safe_stem`), `_2`, `_3`... for later songs of the same name, so the same list
-    always maps a song to the same folder."""
+    setting (empty cells keep the batch's). Paths in a list are relative to its folder; a folder with no audio
+    file in it stays in the list, to be reported as not a song. Each song's `folder` is its name made safe
+    (`outputs.safe_stem`); `run_catalog` gives the songs of one name their own."""
     entries: list[tuple[str, Path, dict[str, Any]]] = []
     for source in sources:
         if source.is_dir():
             found = sorted(p for p in source.rglob("*") if p.suffix.lower() in AUDIO_SUFFIXES and p.is_file())
-            if not found:
-                raise DanceNetError(f"no audio files in the folder {source} (looked for "
-                                    f"{', '.join(sorted(AUDIO_SUFFIXES))})")
-            entries += [(str(p), p, {}) for p in found]
+            entries += [(str(p), p, {}) for p in found] or [(str(source), source, {})]
         elif source.suffix.lower() == ".csv":
             entries += _read_csv(source)
         elif source.suffix.lower() in LIST_SUFFIXES:
@@ -110,17 +109,7 @@ def read_catalog(sources: Sequence[Path]) -> list[CatalogSong]:
             entries.append((str(source), source, {}))
     if not entries:
         raise DanceNetError("no songs given: name audio files, folders of them, or a list (.txt or .csv)")
-    taken: set[str] = set()
-    songs = []
-    for label, path, settings in entries:
-        stem = safe_stem(path, "song")
-        name, k = stem, 1
-        while name.casefold() in taken:  # case-insensitive file systems would merge `A` and `a`
-            k += 1
-            name = f"{stem}_{k}"
-        taken.add(name.casefold())
-        songs.append(CatalogSong(label, path, name, settings))
-    return songs
+    return [CatalogSong(label, path, safe_stem(path, "song"), settings) for label, path, settings in entries]
 
 
 def _read_text(path: Path) -> str:
@@ -246,33 +235,77 @@ def _cached_digest(path: str, _size: int, _mtime_ns: int) -> str:
     return h.hexdigest()
 
 
-def finished(folder: Path, rid: str) -> dict[str, Any] | None:
-    """The kept fields of the song made in `folder` for request `rid` if its files are all there, else None."""
+def _record(out: Path, folder: str) -> dict[str, Any] | None:
     try:
-        record = json.loads((folder / RECORD).read_text(encoding="utf-8"))
-        if record["request_id"] == rid and all((folder / name).is_file() for name in record["files"]):
+        record = json.loads((out / RECORDS / f"{folder}.json").read_text(encoding="utf-8"))
+        return record if isinstance(record, dict) else None
+    except (OSError, ValueError):
+        return None
+
+
+def _write_record(out: Path, song: CatalogSong, rid: str, row: dict[str, Any] | None) -> None:
+    """The song's record: begun (no row: its files are being made) or complete (the row it ended with)."""
+    record: dict[str, Any] = {"song": _identity(song), "request_id": rid, "complete": row is not None}
+    if row is not None:
+        record |= {"files": row["files"], "kept": {k: row.get(k) for k in KEPT}}
+    (out / RECORDS).mkdir(exist_ok=True)
+    write_text(out / RECORDS / f"{song.folder}.json", json.dumps(record, indent=1) + "\n")
+
+
+def _identity(song: CatalogSong) -> str:
+    return os.path.abspath(song.label)
+
+
+def finished(out: Path, song: CatalogSong, rid: str) -> dict[str, Any] | None:
+    """The kept fields of the song if its folder holds all its files for request `rid`, else None."""
+    record = _record(out, song.folder)
+    try:
+        if record["complete"] and record["request_id"] == rid and \
+                all((out / song.folder / name).is_file() for name in record["files"]):
             return dict(record["kept"])
-    except (OSError, ValueError, KeyError, TypeError):
+    except (TypeError, KeyError):
         pass
     return None
 
 
-def _write_record(folder: Path, rid: str, row: dict[str, Any]) -> None:
-    record = {"request_id": rid, "files": row["files"], "kept": {k: row.get(k) for k in KEPT}}
-    write_text(folder / RECORD, json.dumps(record, indent=1) + "\n")
+def assign_folders(out: Path, songs: list[CatalogSong]) -> list[CatalogSong]:
+    """Each song's folder: its name, else `_2`, `_3`...: the first that no earlier song of the list took and
+    that is free (missing, or empty) or this song's (its record says so). A folder of the user's, or another
+    song's, is never written into, and the same list in the same folder gives each song the same folder."""
+    taken: set[str] = set()
+    assigned = []
+    for song in songs:
+        name, k = song.folder, 1
+        while name.casefold() in taken or not _ours(out, name, song):  # case-insensitive file systems too
+            k += 1
+            name = f"{song.folder}_{k}"
+        taken.add(name.casefold())
+        assigned.append(replace(song, folder=name))
+    return assigned
 
 
-def dance_song(task: SongTask, song: CatalogSong, folder: Path, rid: str) -> dict[str, Any]:
-    """Run `task` on one song into `folder`, whatever happens: the row of the status table for it. The old
-    record goes first, the new one after the files, so a run cut off in between leaves none."""
+def _ours(out: Path, name: str, song: CatalogSong) -> bool:
+    folder = out / name
+    if not os.path.lexists(folder):
+        return True
+    record = _record(out, name)
+    if record is not None:
+        return record.get("song") == _identity(song)
+    return folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir())
+
+
+def dance_song(task: SongTask, song: CatalogSong, out: Path, rid: str) -> dict[str, Any]:
+    """Run `task` on one song into its folder, whatever happens: the row of the status table for it. Its record
+    says it begun before the first file, and complete after the last."""
     t0 = time.perf_counter()
     row: dict[str, Any] = {}
+    folder = out / song.folder
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_leftovers(folder)
-        (folder / RECORD).unlink(missing_ok=True)
+        _write_record(out, song, rid, None)
         row = task(song, folder)
-        _write_record(folder, rid, row)
+        _write_record(out, song, rid, row)
         row["status"] = "done"
     except DanceNetError as e:
         row = {"status": "failed", "error": str(e)}
@@ -340,33 +373,39 @@ def run_catalog(songs: list[CatalogSong], out: Path, task: SongTask, *, where: W
         ray_module()  # a missing Ray is said before anything is written
     check_folder_writable(out)
     remove_leftovers(out)
+    remove_leftovers(out / RECORDS)
+    songs = assign_folders(out, songs)
     status = Status(out, songs)
     tell = report or (lambda _song, _row: None)
-    todo = []
-    for i, song in enumerate(songs):
-        try:
-            rid = request_id(song, task)
-        except DanceNetError as e:
-            status.set(i, {"status": "failed", "error": str(e)})
-            tell(song, status.rows[i])
-            continue
-        kept = None if force else finished(out / song.folder, rid)
-        if kept is not None:
-            status.set(i, {**kept, "status": "skipped"})
-            tell(song, status.rows[i])
-        else:
-            todo.append((i, song, rid))
-    status.write()
 
     def ended(i: int, row: dict[str, Any]) -> None:
         status.set(i, row)
         status.write()
-        tell(songs[i], status.rows[i])
+        tell(songs[i], {**row, **status.rows[i]})
 
-    if where == "inline":
-        for i, song, rid in todo:
-            ended(i, dance_song(task, song, out / song.folder, rid))
-    elif where == "local":
+    plan = []  # (index, song, request id, the row of a song that cannot be read)
+    for i, song in enumerate(songs):
+        try:
+            rid = request_id(song, task)
+        except DanceNetError as e:
+            plan.append((i, song, "", {"status": "failed", "error": str(e)}))
+            continue
+        kept = None if force else finished(out, song, rid)
+        if kept is not None:
+            status.set(i, {**kept, "status": "skipped"})
+            tell(song, status.rows[i])
+        else:
+            plan.append((i, song, rid, None))
+    status.write()
+    if where == "inline":  # one after the other, in the list's order
+        for i, song, rid, unread in plan:
+            ended(i, unread or dance_song(task, song, out, rid))
+        return status
+    for i, _song, _rid, unread in plan:
+        if unread:
+            ended(i, unread)
+    todo = [(i, song, rid) for i, song, rid, unread in plan if not unread]
+    if where == "local":
         _run_local(todo, task, out, jobs, ended)
     else:
         _run_ray(todo, task, out, jobs, address, ended)
@@ -450,7 +489,7 @@ def _worker(conn: Connection, parent: int, task: SongTask, out: str) -> None:
     try:
         while (item := conn.recv()) is not None:
             i, song, rid = item
-            conn.send((i, dance_song(task, song, Path(out) / song.folder, rid)))
+            conn.send((i, dance_song(task, song, Path(out), rid)))
     except (KeyboardInterrupt, SystemExit, EOFError, BrokenPipeError):
         pass
 
@@ -506,7 +545,7 @@ def _run_ray(todo: list, task: SongTask, out: Path, jobs: int, address: str | No
             try:
                 row, files = ray.get(ref)
                 if row["status"] == "done":
-                    _commit(out / song.folder, files, rid, row)
+                    _commit(out, song, files, rid, row)
             except ray.exceptions.RayError as e:
                 row = {"status": "failed", "error": f"the Ray task failed: {first_line(e)}"}
             except DanceNetError as e:
@@ -525,19 +564,20 @@ def _ray_song(task: SongTask, song: CatalogSong, data: bytes, rid: str) -> tuple
         path = Path(scratch) / "song" / song.path.name
         path.parent.mkdir()
         path.write_bytes(data)
+        row = dance_song(task, replace(song, path=path), Path(scratch) / "out", rid)
         folder = Path(scratch) / "out" / song.folder
-        row = dance_song(task, replace(song, path=path), folder, rid)
         files = {name: (folder / name).read_bytes() for name in row.get("files", [])}
     return row, files
 
 
-def _commit(folder: Path, files: dict[str, bytes], rid: str, row: dict[str, Any]) -> None:
-    """A cluster song's files written into its folder on this machine, together, then its record."""
+def _commit(out: Path, song: CatalogSong, files: dict[str, bytes], rid: str, row: dict[str, Any]) -> None:
+    """A cluster song's files written into its folder on this machine, together, between its records."""
+    folder = out / song.folder
     folder.mkdir(parents=True, exist_ok=True)
     remove_leftovers(folder)
-    (folder / RECORD).unlink(missing_ok=True)
+    _write_record(out, song, rid, None)
     with claimed_outputs([folder / name for name in files], overwrite=True) as temp:
         for name, data in files.items():
             temp[folder / name].write_bytes(data)
-    _write_record(folder, rid, row)
+    _write_record(out, song, rid, row)
 

@@ -112,11 +112,3 @@ def _folder_lock(folder: Path) -> Iterator[None]:
     finally:
         os.close(fd)
 
-
-def free_folder(parent: Path, name: str, taken: set[Path]) -> Path:
-    """`parent/name`, or `parent/name_2`, `_3`, ... : the first that neither exists nor is in `taken`."""
-    candidate, k = parent / name, 1
-    while candidate in taken or candidate.exists():
-        k += 1
-        candidate = parent / f"{name}_{k}"
-    return candidate

@@ -440,7 +440,7 @@ def test_batch_writes_one_folder_per_song_and_fails_the_bad_one(addon, tmp_path,
     out = [line for line in lines if line.startswith(("OK ", "FAILED ")) or line.endswith("songs done")]
     assert code == 1
     assert out[0].startswith("OK      good.wav: hiphop, 1.0 s, 2 takes")
-    assert out[1].startswith("FAILED  missing.wav: Audio file not found")
+    assert out[1].startswith("FAILED  missing.wav: song not found")
     assert out[2] == "1 of 2 songs done"
     assert {p.name for p in (tmp_path / "out" / "good").iterdir()} == {"good.blend", "good.bvh", "good.fbx"}
 
@@ -474,7 +474,7 @@ def test_batch_command_line_exits_non_zero_on_failure(tmp_path):
         cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert run.returncode == 1, run.stderr
-    assert "FAILED  nope.wav: Audio file not found" in run.stdout
+    assert "FAILED  nope.wav: song not found" in run.stdout
     assert "Traceback" not in run.stderr
 
 
@@ -530,8 +530,9 @@ def test_batch_gives_colliding_songs_their_own_folders_inside_out(addon, tmp_pat
     assert code == 0, lines
     assert len(lines) == 3, lines
     assert (out / "song" / "song.blend").read_bytes() == b"the user's earlier result"
-    folders = sorted(p.name for p in out.iterdir())
+    folders = sorted(p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith("."))
     assert folders == ["song", "song_2", "song_3", "song_4"], folders
+    assert {p.name for p in out.iterdir() if p.is_file()} == {"batch.csv", "batch.json"}
     assert {p.name for p in (out / "song_2").iterdir()} == {"song_2.blend", "song_2.bvh"}
     assert sorted(p.name for p in (tmp_path / "nested").iterdir()) == ["out"]  # nothing written beside --out
     assert f"-> {out / 'song_2'} " in lines[0]
