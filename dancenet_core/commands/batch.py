@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import sys
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -85,11 +87,13 @@ def _fbx_extra(request: DanceRequest, paths: list[Path]) -> Extra:
     return paths, write
 
 
+@cache
 def _addon_batch() -> Any:
-    """The add-on's batch module (`write_fbx`), loaded from its file."""
+    """The add-on's batch module (`write_fbx`), loaded from its file once per process."""
     check_fbx()
     spec = importlib.util.spec_from_file_location("dancenet_addon_batch", ADDON_BATCH)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 
