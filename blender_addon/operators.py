@@ -372,7 +372,6 @@ class DANCENET_OT_save_bone_map(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         from dancenet_core.atomic import write_text
-        from dancenet_core.outputs import safe_stem
 
         props = context.scene.dancenet
         try:
@@ -380,9 +379,8 @@ class DANCENET_OT_save_bone_map(bpy.types.Operator):
             if props.armature is None:
                 raise DanceNetError("Pick the target armature whose bone map to save")
             found, _ = rigchoice.resolve_map(props.armature, chosen)
-            folder = rigchoice.saved_maps_dir()
-            folder.mkdir(parents=True, exist_ok=True)
-            path = folder / f"{safe_stem(self.name, 'bone map')}.json"
+            path = rigchoice.saved_map_path(self.name)
+            path.parent.mkdir(parents=True, exist_ok=True)
             write_text(path, json.dumps({"name": self.name, "bones": found}, indent=2) + "\n")
         except (DanceNetError, OSError) as e:
             self.report({"ERROR"}, str(e))

@@ -3,6 +3,7 @@ a text block), resolved against the rig, and the rig checks made before minutes 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +63,22 @@ def rest_bones(rig_obj: bpy.types.Object) -> list[RestBone]:
 def saved_maps_dir() -> Path:
     """Where Save Bone Map puts a user's maps: Blender's user presets, shared by every file."""
     return Path(bpy.utils.user_resource("SCRIPTS", path="presets/dancenet/bonemaps"))
+
+
+def saved_map_path(name: str) -> Path:
+    """Where Save Bone Map puts the map called `name`: a file of that name, or a one-line error when the file is
+    another map's (two names a file system cannot tell apart, "Rig 1" and "Rig_1"). The same name replaces its
+    own map."""
+    from dancenet_core.outputs import safe_name
+
+    path = saved_maps_dir() / f"{safe_name(name, 'bone map')}.json"
+    try:
+        other = json.loads(path.read_text(encoding="utf-8")).get("name") if path.is_file() else name
+    except (OSError, ValueError, AttributeError):
+        other = None  # damaged or not a map: replaced
+    if other not in (name, None):
+        raise DanceNetError(f"'{other}' is saved as {path.name}; choose another name")
+    return path
 
 
 def current_map(props: Any) -> bonemap.BoneMap:

@@ -25,11 +25,17 @@ _DEVICES = {"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(10)), *(f"LPT
 
 
 def safe_stem(path: str | Path, default: str = "dance") -> str:
-    """A file-name stem from a song's name, as close to it as file systems allow: letters of any script kept
-    (NFC, so `café` is one name however it was typed), only refused characters and whitespace made `_`, no
-    leading or trailing dots (never `..` or a hidden name, so outputs stay inside their folder), no Windows
-    device name, and at most MAX_STEM_BYTES bytes (cut with a short hash, so long names stay distinct)."""
-    stem = _REFUSED.sub("_", unicodedata.normalize("NFC", Path(path).stem)).strip(". ")
+    """A file-name stem from a song's file name (its extension dropped): `safe_name` of its stem."""
+    return safe_name(Path(path).stem, default)
+
+
+def safe_name(name: str, default: str) -> str:
+    """A file-name stem from a name (every dot kept: "Rig v1.2" is not "Rig v1"), as close to it as file systems
+    allow: letters of any script kept (NFC, so `café` is one name however it was typed), only refused characters
+    and whitespace made `_`, no leading or trailing dots (never `..` or a hidden name, so outputs stay inside
+    their folder), no Windows device name, and at most MAX_STEM_BYTES bytes (cut with a short hash, so long
+    names stay distinct)."""
+    stem = _REFUSED.sub("_", unicodedata.normalize("NFC", name)).strip(". ")
     if stem.upper() in _DEVICES:
         stem += "_"
     return fit_name(stem, MAX_STEM_BYTES) or default

@@ -3,6 +3,8 @@ or toe bone of their convention, rigs assigned by the VRM add-on, rigs named by 
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from doubles import convention_rest, synthetic_motion
@@ -222,3 +224,18 @@ def test_an_mmd_rig_dances_under_auto_with_its_leg_ik_muted(scene, addon, song, 
     print(f"MMD ({'English' if english else 'Japanese'} names): feet and hands land within {error:.4f} of the "
           f"height, the head {head:.4f} (the rig's spine starts at its hips: no bone for our pelvis-spine1 step)")
     assert error < 0.05
+
+
+def test_saved_bone_maps_keep_every_name_apart(scene, addon, tmp_path, monkeypatch):
+    """A map's name is a name, not a file name: "Rig v1.2" is saved beside "Rig v1.1" (not as "Rig v1.json" over
+    it); saving a name again replaces its own map; a name whose file is another map's is refused in one line."""
+    monkeypatch.setattr(addon.rigchoice, "saved_maps_dir", lambda: tmp_path / "maps")
+    props = scene.dancenet
+    props.target, props.armature = "EXISTING", addon.rig.create_rig(bpy.context)
+    for name in ("Rig v1.1", "Rig v1.2", "Rig v1.2"):
+        assert bpy.ops.dancenet.save_bone_map(name=name) == {"FINISHED"}
+    saved = {json.loads(p.read_text())["name"]: p.name for p in (tmp_path / "maps").iterdir()}
+    assert saved == {"Rig v1.1": "Rig_v1.1.json", "Rig v1.2": "Rig_v1.2.json"}
+    with pytest.raises(RuntimeError, match="'Rig v1.2' is saved as Rig_v1.2.json; choose another name"):
+        bpy.ops.dancenet.save_bone_map(name="Rig_v1.2")
+    assert json.loads((tmp_path / "maps" / "Rig_v1.2.json").read_text())["name"] == "Rig v1.2"
