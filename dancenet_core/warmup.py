@@ -17,10 +17,11 @@ from __future__ import annotations
 import contextlib
 import subprocess
 import sys
+import tempfile
 import threading
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from typing import IO, Any
+from typing import IO, Any, NamedTuple
 
 import numpy as np
 
@@ -85,17 +86,26 @@ _CHILD = ("import os, sys; sys.path[:0] = sys.argv[1:]; hasattr(os, 'nice') and 
 POLL_S = 0.2  # how often the wait for that process looks at `cancelled`
 
 
-def _compile_elsewhere() -> subprocess.Popen:
+class _Compiling(NamedTuple):
+    """The compiling process and the file its stderr goes to: a file, not a pipe, since a pipe read only once
+    the process ends would fill with numba's warnings and block it for ever."""
+
+    process: subprocess.Popen
+    errors: IO[bytes]
+
+
+def _compile_elsewhere() -> _Compiling:
     """This interpreter (in Blender, Blender's own Python) on this process's import path, isolated from the
     user's Python settings but for this process's bytecode policy (-I drops PYTHONDONTWRITEBYTECODE, and an
     extension's folder must stay as installed when its user asked for no .pyc); numba's cache folder comes with
     the environment. A thread marks each kernel cached (dancenet_core.jit) as the process names it."""
     no_pyc = ["-B"] if sys.dont_write_bytecode else []
+    errors = tempfile.TemporaryFile()
     child = subprocess.Popen([sys.executable, "-I", *no_pyc, "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             stdout=subprocess.PIPE, stderr=errors, text=True,
                              creationflags=getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0))  # fmt: skip
     threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
-    return child
+    return _Compiling(child, errors)
 
 
 def _mark_cached(names: IO[str]) -> None:
@@ -105,20 +115,23 @@ def _mark_cached(names: IO[str]) -> None:
             jit.mark_cached(*kernels[line.strip()][1])
 
 
-def _finished(child: subprocess.Popen, cancelled: Callable[[], bool]) -> bool:
+def _finished(compiling: _Compiling, cancelled: Callable[[], bool]) -> bool:
     """Wait for the compiling process; False (and the process stopped) if cancelled meanwhile."""
-    while not cancelled():
-        try:
-            child.wait(timeout=POLL_S)
-        except subprocess.TimeoutExpired:
-            continue
-        if child.returncode:
-            error = (child.stderr.read().strip().splitlines() or ["?"])[-1]
-            print(f"DanceNet: compiling the kernels apart failed ({error}); compiling them here")
-        return True
-    child.kill()
-    child.wait()
-    return False
+    child = compiling.process
+    with compiling.errors:
+        while not cancelled():
+            try:
+                child.wait(timeout=POLL_S)
+            except subprocess.TimeoutExpired:
+                continue
+            if child.returncode:
+                compiling.errors.seek(0)
+                lines = compiling.errors.read().decode(errors="replace").strip().splitlines()
+                print(f"DanceNet: compiling the kernels apart failed ({(lines or ['?'])[-1]}); compiling them here")
+            return True
+        child.kill()
+        child.wait()
+        return False
 
 
 def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContextManager | None = None) -> None:

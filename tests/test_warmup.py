@@ -65,3 +65,24 @@ def test_deferred_kernels_are_compiled_apart(tmp_path: Path) -> None:
     assert "TWINS [0, 0, 0, 0]" in out
     assert "WARM [1, 1, 1, 1] [False, False, False, True]" in out
     assert len(list((tmp_path / "numba").rglob("*.nbi"))) == 4
+
+
+def test_a_compiling_process_that_writes_much_to_stderr_is_waited_for(monkeypatch, capsys) -> None:
+    """numba's warnings can fill the pipe of the compiling process' stderr: the warm-up reads it as it comes, so
+    that process never blocks on a full pipe, and its last line is the reason printed when it fails."""
+    import threading
+
+    from dancenet_core import warmup
+
+    monkeypatch.setattr(warmup, "_CHILD", "import sys; sys.stderr.write('numba warning\\n' * 100000); "
+                                          "sys.exit('the last line')")
+    child = warmup._compile_elsewhere()
+    waiting = threading.Thread(target=warmup._finished, args=(child, lambda: False), daemon=True)
+    waiting.start()
+    waiting.join(30)
+    blocked = waiting.is_alive()
+    if blocked:  # end the child, so nothing is left running
+        child.kill()
+        waiting.join(10)
+    assert not blocked
+    assert "compiling the kernels apart failed (the last line)" in capsys.readouterr().out
