@@ -431,7 +431,13 @@ def _run_local(todo: list, task: SongTask, out: Path, jobs: int,
 
     def give(conn: Connection, process: mp.process.BaseProcess) -> None:
         item = queue.popleft() if queue else None
-        conn.send(item)
+        try:
+            conn.send(item)
+        except OSError:  # the worker died between two songs: the song goes to another
+            if item is not None:
+                queue.appendleft(item)
+                start()
+            item = None
         if item is None:
             process.join()
             conn.close()

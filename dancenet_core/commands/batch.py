@@ -14,7 +14,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from ..catalog import CatalogSong, read_catalog, run_catalog
+from ..catalog import CatalogSong, ray_module, read_catalog, run_catalog
 from ..engines import get_engine
 from ..errors import DanceNetError
 from ..outputs import safe_stem
@@ -121,20 +121,22 @@ def run(args: argparse.Namespace) -> int:
         raise DanceNetError("--address goes with --cluster ray")
     if args.fbx:
         check_fbx()
+    if args.cluster == "ray":
+        ray_module()
     defaults = options_from(args)
     everyone = DanceRequest(Path(), **defaults)  # the batch's settings, before a song is read
     everyone.check_settings()
     get_engine(everyone.engine).check(everyone)  # its weights load, its styles are known
     songs = read_catalog(args.songs)
     task = GenerateTask(defaults, args.render, args.fbx)
-    bar = tqdm(total=len(songs), unit="song", dynamic_ncols=True,
+    bar = tqdm(total=len(songs), unit="song", dynamic_ncols=True, delay=0.5,
                bar_format="{l_bar}{bar} {n_fmt}/{total_fmt} songs [{elapsed}<{remaining}{postfix}]")
     counts = dict.fromkeys(("done", "skipped", "failed"), 0)
 
     def report(song: CatalogSong, row: dict[str, Any]) -> None:
         counts[row["status"]] += 1
         if row["status"] == "failed":
-            bar.write(f"failed: {song.label}: {row['error']}")
+            bar.write(f"failed: {song.label}: {row['error']}", file=sys.stderr)
         if row["status"] == "skipped":  # done before: counted, not timed (the time left is the songs to dance)
             bar.total -= 1
         else:

@@ -1,0 +1,312 @@
+"""`dancenet batch`: a catalog of 12 made-up songs (one unreadable) danced by worker processes and by a local Ray
+cluster gives each song the very bytes `dancenet generate` writes for it; a song that fails, a worker killed and a
+batch killed outright leave the others done, whole files only, and the same command finishes the rest."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import soundfile as sf
+from made_up import music
+
+from dancenet_core.catalog import RECORDS, CatalogSong, _ray_song, read_catalog, request_id, run_catalog
+from dancenet_core.cli import main
+from dancenet_core.commands.batch import GenerateTask
+from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
+from dancenet_core.request import options
+
+ROOT = Path(__file__).resolve().parents[2]
+GOOD = 11
+BAD = "unreadable.wav"
+TEMP_MARK = ".tmp"
+
+
+@pytest.fixture(scope="module")
+def songs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """11 songs of 3.5 to 4.5 s (their own chords and noise each) and a file that is not audio."""
+    folder = tmp_path_factory.mktemp("catalog") / "songs"
+    folder.mkdir()
+    for k in range(GOOD):
+        sf.write(folder / f"song {k:02d}.wav", music(3.5 + 0.1 * k, seed=k), MADMOM_SAMPLE_RATE)
+    (folder / BAD).write_bytes(b"RIFF\x00\x00\x00\x00WAVE but nothing a decoder can read")
+    return folder
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    """A song folder's files by name; the summary without its timings (they are the run's, not the dance's)."""
+    files = {}
+    for p in sorted(folder.iterdir()):
+        data = p.read_bytes()
+        if p.suffix == ".json":
+            summary = json.loads(data)
+            summary.pop("timings_s")
+            data = json.dumps(summary, sort_keys=True).encode()
+        files[p.name] = data
+    return files
+
+
+@pytest.fixture(scope="module")
+def reference(songs: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, bytes]]:
+    """Each good song's files from `dancenet generate` (analysing the songs here fills the shared cache)."""
+    out = tmp_path_factory.mktemp("generate")
+    files = {}
+    for song in sorted(songs.glob("song *.wav")):
+        folder = out / song.stem.replace(" ", "_")
+        assert main(["generate", str(song), "-o", str(folder), "--seed", "7"]) == 0
+        files[folder.name] = _files(folder)
+    return files
+
+
+def _batch(*args: str) -> int:
+    return main(["batch", *args, "--seed", "7"])
+
+
+def _status(out: Path) -> dict[str, str]:
+    return {Path(row["song"]).name: row["status"] for row in json.loads((out / "batch.json").read_text())["songs"]}
+
+
+def _rows(out: Path) -> dict[str, dict]:
+    return {Path(row["song"]).name: row for row in json.loads((out / "batch.json").read_text())["songs"]}
+
+
+def _assert_same_as_generate(out: Path, reference: dict[str, dict[str, bytes]]) -> None:
+    for name, files in reference.items():
+        assert _files(out / name) == files, name
+    assert not any(TEMP_MARK in p.name for p in out.rglob("*")), "a temporary file was left"
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_workers_write_what_generate_writes_and_report_the_bad_song(jobs: str, songs: Path, reference: dict,
+                                                                    tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "out"
+    assert _batch(str(songs), "-o", str(out), "--jobs", jobs) == 1  # one song failed, after the others
+    captured = capsys.readouterr()
+    assert f"{GOOD} danced, 0 already done, 1 failed of {GOOD + 1} songs" in captured.out
+    failed = [line for line in captured.err.splitlines() if "failed: " in line]
+    assert len(failed) == 1 and BAD in failed[0] and "cannot decode" in failed[0], captured.err
+    _assert_same_as_generate(out, reference)
+    rows = _rows(out)
+    assert rows[BAD]["status"] == "failed" and "\n" not in rows[BAD]["error"]
+    assert not (out / "unreadable").exists()  # no folder for a song that made nothing
+    assert all(rows[f"song {k:02d}.wav"]["status"] == "done" for k in range(GOOD))
+    assert rows["song 03.wav"]["frames"] == 95 and rows["song 03.wav"]["style"]
+    assert all(0 < rows[n]["peak_memory_mb"] < 4000 for n in rows)
+    csv_lines = (out / "batch.csv").read_text().splitlines()
+    assert csv_lines[0].startswith("song,folder,status,style,tempo_bpm,frames") and len(csv_lines) == GOOD + 2
+    # the same command again dances nothing: every song is there for the same request
+    assert _batch(str(songs), "-o", str(out), "--jobs", jobs) == 1
+    assert f"0 danced, {GOOD} already done, 1 failed" in capsys.readouterr().out
+    assert _batch(str(songs / "song 00.wav"), "-o", str(out), "--force", "--jobs", jobs) == 0
+    assert "1 danced, 0 already done" in capsys.readouterr().out
+    # another seed is another request: danced again
+    assert main(["batch", str(songs / "song 00.wav"), "-o", str(out), "--seed", "8", "--jobs", jobs]) == 0
+    assert "1 danced, 0 already done" in capsys.readouterr().out
+    assert _files(out / "song_00") != reference["song_00"]
+
+
+def _children(pid: int) -> list[int]:
+    """The batch's worker processes (multiprocessing's resource tracker left out)."""
+    kids = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        for child in (task / "children").read_text().split():
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+            if b"spawn_main" in cmdline:
+                kids.append(int(child))
+    return kids
+
+
+def _command(songs: Path, out: Path) -> list[str]:
+    return [sys.executable, "-m", "dancenet_core.cli", "batch", str(songs), "-o", str(out), "--seed", "7",
+            "--jobs", "2"]
+
+
+def _done(out: Path) -> int:
+    try:
+        return json.loads((out / "batch.json").read_text())["counts"]["done"]
+    except (OSError, ValueError):
+        return 0
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
+def test_a_killed_worker_fails_its_song_only_and_the_rerun_finishes_the_missing_ones(songs: Path, reference: dict,
+                                                                                      tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    run = subprocess.Popen(_command(songs, out), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while _done(out) < 1 and run.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)  # the worker that finished that song has its next one
+    workers = _children(run.pid)
+    assert len(workers) == 2, workers
+    os.kill(workers[0], signal.SIGKILL)
+    stdout, stderr = run.communicate(timeout=120)
+    assert run.returncode == 1, stderr
+    rows = _rows(out)
+    killed = [n for n, r in rows.items() if r["status"] == "failed" and "killed by SIGKILL" in r["error"]]
+    assert len(killed) == 1, rows
+    assert "run the batch again" in rows[killed[0]]["error"]
+    done_first = {n for n, r in rows.items() if r["status"] == "done"}
+    assert len(done_first) == GOOD - 1
+    rerun = subprocess.run(_command(songs, out), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert rerun.returncode == 1, rerun.stderr
+    status = _status(out)
+    assert {n for n, s in status.items() if s == "skipped"} == done_first
+    assert {n for n, s in status.items() if s == "done"} == set(killed)  # only the missing song danced
+    assert status[BAD] == "failed"
+    _assert_same_as_generate(out, reference)
+
+
+def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted_outputs(
+        songs: Path, reference: dict, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    seed = int.from_bytes(os.urandom(4), "little")
+    delay = random.Random(seed).uniform(0.5, 5.0)
+    run = subprocess.Popen(_command(songs, out), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                           start_new_session=True)
+    time.sleep(delay)
+    os.killpg(run.pid, signal.SIGKILL)  # the batch and its workers at once, as `kill -9 -PGID` does
+    run.wait()
+    # whatever was under a final name is whole: the very bytes of the song's file
+    for folder in (p for p in out.glob("song_*") if p.is_dir()):
+        for p in folder.iterdir():
+            if TEMP_MARK not in p.name:
+                assert _files(folder)[p.name] == reference[folder.name][p.name], (p, f"seed {seed}")
+    rerun = subprocess.run(_command(songs, out), cwd=ROOT, capture_output=True, text=True, timeout=180)
+    assert rerun.returncode == 1, (rerun.stderr, f"seed {seed}")
+    assert set(_status(out).values()) <= {"done", "skipped", "failed"}
+    assert [n for n, s in _status(out).items() if s == "failed"] == [BAD]
+    _assert_same_as_generate(out, reference)
+    assert not any(TEMP_MARK in p.name for p in (out / RECORDS).iterdir())
+
+
+def test_the_csv_gives_each_song_its_settings(songs: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    listing = tmp_path / "list" / "catalog.csv"
+    listing.parent.mkdir()
+    listing.write_text("song,style,seed,start,end,takes,fps,root-motion\n"
+                       f"{songs / 'song 01.wav'},waltz,3,,,,,\n"
+                       f"../{songs.name}/song 02.wav,,,0.5,3.5,2,30,in-place\n"
+                       f"{songs / 'song 03.wav'},,,,,,,\n")
+    (tmp_path / songs.name).symlink_to(songs)  # the CSV's relative path: from its own folder
+    out = tmp_path / "out"
+    assert main(["batch", str(listing), "-o", str(out), "--jobs", "2", "--seed", "5"]) == 0
+    capsys.readouterr()
+    runs = {"song_01": ["--style", "waltz", "--seed", "3"],
+            "song_02": ["--seed", "5", "--start", "0.5", "--end", "3.5", "--takes", "2", "--fps", "30",
+                        "--root-motion", "in-place"],
+            "song_03": ["--seed", "5"]}
+    for name, flags in runs.items():
+        alone = tmp_path / "alone" / name
+        song = songs / f"{name.replace('_', ' ')}.wav"
+        if name == "song_02":  # the summary names the song as the list does
+            song = listing.parent / f"../{songs.name}/song 02.wav"
+        assert main(["generate", str(song), "-o", str(alone), *flags]) == 0
+        assert _files(out / name) == _files(alone), name
+    capsys.readouterr()
+    assert json.loads((out / "song_01" / "song_01.json").read_text())["style"] == "waltz"
+    assert sorted(p.name for p in (out / "song_02").iterdir()) == [
+        "song_02.json", "song_02_take1.bvh", "song_02_take1.npz", "song_02_take2.bvh", "song_02_take2.npz"]
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ("song,colour\nx.wav,red\n", "unknown column 'colour'"),
+    ("song,seed\nx.wav,three\n", "line 2: seed must be a whole number, got 'three'"),
+    ("title\nx.wav\n", "has no 'song' column"),
+])
+def test_a_bad_csv_is_one_line(text: str, says: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    listing = tmp_path / "catalog.csv"
+    listing.write_text(text)
+    assert main(["batch", str(listing), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dancenet: error: ") and says in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_every_request_option_is_a_csv_column(tmp_path: Path) -> None:
+    flags = [o.flag.lstrip("-").removeprefix("no-") for _n, _d, o in options() if o.flag]
+    listing = tmp_path / "all.csv"
+    listing.write_text(",".join(["song", *flags]) + "\n" + "x.wav" + "," * len(flags) + "\n"
+                       + "y.wav,,,,,," + ",".join("no" if f == "footfix" else "" for f in flags[5:]) + "\n")
+    first, second = read_catalog([listing])
+    assert (first.settings, second.settings) == ({}, {"footfix": False})
+    assert first.path == tmp_path / "x.wav"
+
+
+def test_lists_folders_and_names(songs: Path, tmp_path: Path) -> None:
+    listing = tmp_path / "songs.txt"
+    listing.write_text(f"# two songs\n{songs / 'song 00.wav'}\n\n{songs / 'song 00.wav'}\n")
+    catalog = read_catalog([listing, songs])
+    assert [s.folder for s in catalog[:2]] == ["song_00", "song_00"]
+    assert len(catalog) == 2 + GOOD + 1
+    out = tmp_path / "out"
+    (out / "song_00").mkdir(parents=True)
+    (out / "song_00" / "mine.blend").write_bytes(b"the user's")  # never written into
+    task = GenerateTask({name: default for name, default, o in options() if o.flag})
+    status = run_catalog(catalog[:2], out, task, where="inline")
+    assert [r["folder"] for r in status.rows] == ["song_00_2", "song_00_3"]
+    assert [p.name for p in (out / "song_00").iterdir()] == ["mine.blend"]
+    again = run_catalog(catalog[:2], out, task, where="inline")
+    assert [r["status"] for r in again.rows] == ["skipped", "skipped"]
+
+
+def test_a_cluster_task_dances_from_the_bytes_it_is_sent(songs: Path, reference: dict) -> None:
+    """What a Ray node runs, without Ray: the song's bytes in, its files out; the path it was read from on the
+    driver is not there."""
+    task = GenerateTask({name: default for name, default, o in options() if o.flag} | {"seed": 7})
+    song = read_catalog([songs / "song 04.wav"])[0]
+    rid = request_id(song, task)
+    elsewhere = CatalogSong(song.label, Path("/nowhere/on/this/node") / song.path.name, song.folder)
+    row, files = _ray_song(task, elsewhere, song.path.read_bytes(), rid)
+    assert row["status"] == "done", row
+    summary = json.loads(files["song_04.json"])
+    assert summary["song"] == song.label  # the driver's name for it, not the node's copy
+    assert files["song_04.bvh"] == reference["song_04"]["song_04.bvh"]
+    assert files["song_04.npz"] == reference["song_04"]["song_04.npz"]
+
+
+def test_without_ray_the_cluster_is_one_line(songs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # what `import ray` meets where Ray is not installed
+    assert main(["batch", str(songs), "-o", str(tmp_path / "out"), "--cluster", "ray"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'pip install "dancenet[cluster]"' in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_local_ray_cluster_writes_the_same_bytes(songs: Path, reference: dict, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR")
+    try:
+        out = tmp_path / "out"
+        assert _batch(str(songs), "-o", str(out), "--cluster", "ray") == 1
+        assert f"{GOOD} danced, 0 already done, 1 failed" in capsys.readouterr().out
+        _assert_same_as_generate(out, reference)
+        assert "cannot decode" in _rows(out)[BAD]["error"]
+        assert _batch(str(songs), "-o", str(out), "--cluster", "ray") == 1
+        assert f"0 danced, {GOOD} already done, 1 failed" in capsys.readouterr().out
+    finally:
+        ray.shutdown()
+
+
+def test_fbx_for_every_take_beside_generate_s_files(songs: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture) -> None:
+    pytest.importorskip("bpy")
+    out = tmp_path / "out"
+    song = songs / "song 05.wav"
+    assert main(["batch", str(song), "-o", str(out), "--fbx", "--takes", "2", "--jobs", "1"]) == 0, \
+        capsys.readouterr().err
+    alone = tmp_path / "alone"
+    assert main(["generate", str(song), "-o", str(alone), "--takes", "2"]) == 0
+    files = _files(out / "song_05")
+    for take in (1, 2):
+        assert files.pop(f"song_05_take{take}.fbx").startswith(b"Kaydara FBX Binary")
+    assert files == _files(alone)
