@@ -153,33 +153,42 @@ def trained(runs: Path, variant: str, steps: int, seed: int) -> bool:
     return info.get("steps") == steps and info["settings"]["seed"] == seed and info.get("variant") == variant
 
 
+POLL_S = 5.0  # how often the training processes are looked at
+
+
 def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs: int, data: Path | None) -> None:
-    """Train the missing runs, `jobs` processes at a time (one thread each), logs next to the runs."""
+    """Train the missing runs, `jobs` processes at a time (one thread each), logs next to the runs. When one
+    fails (or this process is interrupted) the others are stopped: their runs resume from their checkpoints."""
     todo = [v for v in variants if not trained(runs, v, steps, seed)]
     for v in variants:
         if v not in todo:
             print(f"  {v}: trained run found in {run_dir(runs, v)}, reused")
     env = os.environ | {"OMP_NUM_THREADS": "1"}
     running: list[tuple[str, subprocess.Popen]] = []
-    while todo or running:
-        while todo and len(running) < jobs:
-            v = todo.pop(0)
-            out = run_dir(runs, v)
-            out.mkdir(parents=True, exist_ok=True)
-            cmd = [sys.executable, "-m", "dancenet_core.cli", "train", "dancenet", "--variant", v,
-                   "--steps", str(steps), "--minutes", "1e9", "--seed", str(seed), "--out", str(out), "--resume"]
-            if data:
-                cmd += ["--data", str(data)]
-            print(f"  {v}: training {steps} steps -> {out} (log {out}.log)")
-            running.append((v, subprocess.Popen(cmd, env=env, stdout=open(f"{out}.log", "a"),  # noqa: SIM115
-                                                stderr=subprocess.STDOUT)))
-        time.sleep(5)
-        for v, proc in list(running):
-            if proc.poll() is not None:
-                running.remove((v, proc))
-                if proc.returncode:
-                    raise DanceNetError(f"training {v} failed (exit {proc.returncode}); see {run_dir(runs, v)}.log")
-                print(f"  {v}: trained")
+    try:
+        while todo or running:
+            while todo and len(running) < jobs:
+                v = todo.pop(0)
+                out = run_dir(runs, v)
+                out.mkdir(parents=True, exist_ok=True)
+                cmd = [sys.executable, "-m", "dancenet_core.cli", "train", "dancenet", "--variant", v, "--steps",
+                       str(steps), "--minutes", "1e9", "--seed", str(seed), "--out", str(out), "--resume"]
+                if data:
+                    cmd += ["--data", str(data)]
+                print(f"  {v}: training {steps} steps -> {out} (log {out}.log)")
+                with open(f"{out}.log", "a") as log:  # the process has its own copy
+                    running.append((v, subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)))
+            time.sleep(POLL_S)
+            for v, proc in list(running):
+                if proc.poll() is not None:
+                    running.remove((v, proc))
+                    if proc.returncode:
+                        raise DanceNetError(f"training {v} failed (exit {proc.returncode}); see {run_dir(runs, v)}.log")
+                    print(f"  {v}: trained")
+    finally:
+        for _v, proc in running:
+            proc.kill()
+            proc.wait()
 
 
 # ------------------------------------------------------------------------------------------ dancing

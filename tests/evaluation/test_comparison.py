@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
 
+from dancenet_core.errors import DanceNetError
+from dancenet_core.evaluation import comparison
 from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segments
 from dancenet_core.motion import Motion
 from dancenet_core.nets.variants import VARIANTS, build_model, sample_normalized
@@ -107,3 +114,34 @@ def test_replay_distance_tells_a_copy_from_a_new_dance() -> None:
     new = nearest_segment_distance(body_relative_segments(_dance(7, 250).positions(), 25.0, hop_s=1.0), library)
     assert copy.max() < 1e-6
     assert new.min() > 0.02
+
+
+FAKE_PYTHON = """#!/bin/sh
+case "$*" in
+  *"--variant bad"*) echo "training failed" >&2; exit 3 ;;
+  *) echo $$ > "$PID_FILE"; exec sleep 60 ;;
+esac
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
+def test_a_failed_training_stops_the_others_and_closes_their_logs(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two models train at once; one fails: the command says which, and the other's training is stopped (not
+    left running for hours) and every log file is closed."""
+    python = tmp_path / "python"
+    python.write_text(FAKE_PYTHON)
+    python.chmod(0o755)
+    monkeypatch.setattr(sys, "executable", str(python))
+    monkeypatch.setenv("PID_FILE", str(tmp_path / "slow.pid"))
+    monkeypatch.setattr(comparison, "POLL_S", 0.1, raising=False)
+    with pytest.raises(DanceNetError, match="training bad failed"):
+        comparison.train_variants(["slow", "bad"], tmp_path / "runs", steps=10, seed=0, jobs=2, data=None)
+    slow = int((tmp_path / "slow.pid").read_text())
+    stat = Path(f"/proc/{slow}/stat")
+    alive = stat.is_file() and stat.read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    if alive:  # end it, so a failure here leaves nothing running
+        os.kill(slow, signal.SIGKILL)
+    assert not alive
+    open_logs = [p for p in Path("/proc/self/fd").iterdir() if os.path.realpath(p).endswith(".log")]
+    assert open_logs == []
