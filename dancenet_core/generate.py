@@ -10,20 +10,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .continuation import keep_original
+from .constants import MIN_PART_S
+from .continuation import DIFFERENCES, keep_original
 from .engines import Engine, Takes, get_engine
-from .errors import GenerationCancelled
+from .errors import DanceNetError, GenerationCancelled
 from .motion import Motion
-from .music.features import analyze_music
-from .music.form import SongForm, song_form
+from .music.features import MusicAnalysis, analyze_music
+from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
-from .request import DEFAULT_ENGINE, DanceRequest
-from .returns import dance_returns
+from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
+from .returns import carry_on, dance_returns
 from .rootmotion import apply_mode
 
 
@@ -49,6 +50,9 @@ def check_request(request: DanceRequest) -> Engine:
     request.check()
     engine = get_engine(request.engine)
     engine.check(request)
+    for o in request.sections:
+        if o.style is not None:
+            engine.check(replace(request, style=o.style))  # a style the engine lacks, said now
     return engine
 
 
@@ -72,11 +76,17 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
     if cancelled():
         raise GenerationCancelled
     start, end = request.part(analysis.duration_s)
-    takes = engine.dance(request, analysis, report, cancelled)
-    t = time.perf_counter()
     form = song_form(analysis)
-    takes = _with_returns(takes, form, start, request)
-    takes.timings["form_s"] = time.perf_counter() - t
+    for o in request.sections:
+        section_named(form, o.section, (start, end))  # a section the song lacks, said before the dancing
+    if request.redo_section is not None:
+        takes = _redo_section(engine, form, analysis, request, (start, end), report, cancelled)
+    else:
+        takes = engine.dance(request, analysis, report, cancelled)
+        takes = _with_sections(engine, takes, form, analysis, request, (start, end), report, cancelled)
+        t = time.perf_counter()
+        takes = _with_returns(takes, form, start, request)
+        takes.timings["returns_s"] = time.perf_counter() - t
     report("done", 1.0)
 
     def within(times: np.ndarray) -> np.ndarray:
@@ -91,13 +101,69 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
     )
 
 
+def section_named(form: SongForm, name: str, part: tuple[float, float]) -> Section:
+    """The section of the song's form called `name` (A2) that starts within the danced part, or a one-line
+    error listing those there are."""
+    start, end = part
+    inside = [s for s in form.sections if start <= s.start_s < end - MIN_PART_S]
+    found = next((s for s in inside if s.name == name), None)
+    if found is None:
+        raise DanceNetError(f"the danced part of the song has no section '{name}'; its sections are "
+                            f"{', '.join(s.name for s in inside)} (`dancenet analyze SONG` lists them)")
+    return found
+
+
+def _dance_section(engine: Engine, analysis: MusicAnalysis, request: DanceRequest, dance: Motion, section: Section,
+                   part: tuple[float, float], report: StageProgress, cancelled: Callable[[], bool]) -> Takes:
+    """One take of `request` from the part's start to the end of `section`: `dance` kept before the section
+    (where there are frames enough to continue from), the section danced anew."""
+    start, end = part
+    at_s = section.start_s - start
+    kept = dict(continue_from=dance, at_s=at_s) if at_s * dance.fps > DIFFERENCES else {}
+    sub = replace(request, takes=1, end_s=min(end, section.end_s), sections=(), returns="anew", redo_section=None,
+                  **kept)
+    return engine.dance(sub, analysis, report, cancelled)
+
+
+def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, request: DanceRequest,
+                  part: tuple[float, float], report: StageProgress, cancelled: Callable[[], bool]) -> Takes:
+    """`request.continue_from` with the section `request.redo_section` danced anew (new frames from its start to
+    its end, then the kept dance carried on from where they end)."""
+    assert request.redo_section is not None and request.continue_from is not None
+    section = section_named(form, request.redo_section, part)
+    takes = _dance_section(engine, analysis, request, request.continue_from, section, part, report, cancelled)
+    kept = request.continue_from.resampled(takes.motions[0].fps)
+    takes.motions = [carry_on(m, kept, m.num_frames) for m in takes.motions]
+    takes.contacts = []  # the kept dance has none
+    return takes
+
+
+def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: MusicAnalysis, request: DanceRequest,
+                   part: tuple[float, float], report: StageProgress, cancelled: Callable[[], bool]) -> Takes:
+    """The takes with each section that has a style or an energy of its own (`request.sections`) danced anew
+    with them, a new seed for each, the dance after it carried on."""
+    for i, o in enumerate(o for o in request.sections if o.redances):
+        section = section_named(form, o.section, part)
+        for k, motion in enumerate(takes.motions):
+            sub = replace(request, style=o.style or request.style, energy=o.energy or request.energy,
+                          seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
+            new = _dance_section(engine, analysis, sub, motion, section, part, report, cancelled)
+            danced = new.motions[0]
+            takes.motions[k] = carry_on(danced, motion, danced.num_frames)
+            if k < len(takes.contacts) and new.contacts:
+                takes.contacts[k] = np.concatenate([new.contacts[0], takes.contacts[k][danced.num_frames:]])
+    return takes
+
+
 def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRequest) -> Takes:
-    """The takes with the song's returning sections danced as `request.returns` says (`returns.dance_returns`),
+    """The takes with the song's returning sections danced as `request.returns` says, or as a section's own
+    settings say (`returns.dance_returns`; a section danced with a style or energy of its own is left as it is),
     their foot contacts following the frames."""
     keep = request.at_s if request.continue_from is not None else 0.0
+    modes = {o.section: "anew" if o.redances else o.returns for o in request.sections if o.redances or o.returns}
     motions, contacts = [], []
     for k, motion in enumerate(takes.motions):
-        out, frame_map = dance_returns(motion, form, start_s, request.returns, keep)
+        out, frame_map = dance_returns(motion, form, start_s, request.returns, keep, modes)
         motions.append(out)
         if k < len(takes.contacts):
             contacts.append(takes.contacts[k][np.round(frame_map).astype(int)])

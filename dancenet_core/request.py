@@ -9,7 +9,7 @@ setting is a field here and the engine that reads it; the front-ends pick it up 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -67,6 +67,53 @@ _ROOT_LABELS = {
 _ROOT_CHOICES = tuple((mode, *_ROOT_LABELS[mode]) for mode in ROOT_MODES)
 
 
+_RETURN_CHOICES = (
+    ("repeat", "Repeat", "A returning section is danced as it was the first time"),
+    ("mirror", "Mirror", "A returning section is danced as the first time, left and right swapped"),
+    ("anew", "Anew", "Every section is danced anew"))
+
+
+@dataclass(frozen=True)
+class SectionOverride:
+    """Settings for one section of the song's form (`music.form`: A1, B1, A2, ...) that differ from the dance's:
+    its style or energy (the section is then danced anew with them), or how it is danced where it returns."""
+
+    section: str
+    style: str | None = None
+    energy: str | None = None
+    returns: str | None = None
+
+    KEYS = ("style", "energy", "returns")
+
+    @classmethod
+    def parse(cls, text: str) -> SectionOverride:
+        """`A2:style=tango,energy=lively,returns=anew` (the command line's and batch lists' form)."""
+        name, _, rest = str(text).partition(":")
+        values: dict[str, str] = {}
+        for item in filter(None, (p.strip() for p in rest.split(","))):
+            key, eq, value = item.partition("=")
+            if not eq or key.strip() not in cls.KEYS or not value.strip():
+                raise DanceNetError(f"section setting '{item}' in '{text}': write SECTION:key=value,... with keys "
+                                    f"{', '.join(cls.KEYS)} (e.g. A2:style=tango,energy=lively)")
+            values[key.strip()] = value.strip()
+        if not name.strip() or not values:
+            raise DanceNetError(f"section settings '{text}': write SECTION:key=value,... (e.g. A2:returns=anew)")
+        return cls(name.strip(), **values)
+
+    @classmethod
+    def parse_many(cls, text: str) -> tuple[SectionOverride, ...]:
+        """Settings of several sections separated by ';' (a batch list's cell), or of one."""
+        return tuple(cls.parse(t) for t in str(text).split(";") if t.strip())
+
+    def __str__(self) -> str:
+        return f"{self.section}:" + ",".join(f"{k}={getattr(self, k)}" for k in self.KEYS if getattr(self, k))
+
+    @property
+    def redances(self) -> bool:
+        """Whether the section is danced anew with settings of its own (a style or an energy)."""
+        return self.style is not None or self.energy is not None
+
+
 @dataclass(frozen=True)
 class DanceRequest:
     """One Generate Dance: the song, the part of it, how to dance it and how to shape the takes.
@@ -109,10 +156,12 @@ class DanceRequest:
         "floor carries path and heading)", str, "--root-motion", "Root Motion", choices=_ROOT_CHOICES))
     returns: str = _option("repeat", Option(
         "where the music returns (a chorus heard again): repeat the dance of its first hearing, mirror it (left "
-        "and right swapped) or dance it anew", str, "--returns", "Returns", choices=(
-            ("repeat", "Repeat", "A returning section is danced as it was the first time"),
-            ("mirror", "Mirror", "A returning section is danced as the first time, left and right swapped"),
-            ("anew", "Anew", "Every section is danced anew"))))
+        "and right swapped) or dance it anew", str, "--returns", "Returns", choices=_RETURN_CHOICES))
+    sections: tuple[SectionOverride, ...] = _option((), Option(
+        "settings of one section of the song's form (`dancenet analyze` names them A1, B1, A2, ...), repeatable: "
+        "SECTION:style=S,energy=E,returns=R (e.g. A2:style=tango,energy=lively)", SectionOverride.parse_many,
+        "--section", metavar="SECTION:KEY=VALUE,..."))
+    redo_section: str | None = None  # with continue_from: dance only this section anew, keep the rest of it
     continue_from: Motion | None = None  # a dance to the same part of the song, kept up to `at_s` seconds
     at_s: float = 0.0
     engine: str = _option(DEFAULT_ENGINE, Option(
@@ -149,6 +198,15 @@ class DanceRequest:
             if o.kind is str and allowed and getattr(self, name) not in allowed:
                 raise DanceNetError(f"unknown {name.replace('_', ' ')} '{getattr(self, name)}'; choose one of: "
                                     f"{', '.join(allowed)}")
+        for o in self.sections:
+            for key, allowed in (("energy", ENERGY_SCALES), ("returns", [c[0] for c in _RETURN_CHOICES])):
+                if getattr(o, key) is not None and getattr(o, key) not in allowed:
+                    raise DanceNetError(f"unknown {key} '{getattr(o, key)}' for section {o.section}; choose one "
+                                        f"of: {', '.join(allowed)}")
+        if len({o.section for o in self.sections}) < len(self.sections):
+            raise DanceNetError("a section is given settings twice: give each section once (--section)")
+        if self.redo_section is not None and self.continue_from is None:
+            raise DanceNetError("dancing one section anew needs the dance it belongs to (continue_from)")
         if self.continue_from is not None and not 0 < self.at_s <= self.continue_from.duration:
             raise DanceNetError(f"the new dancing must start within the kept dance (0 to "
                                 f"{self.continue_from.duration:.2f} s), got {self.at_s}")
@@ -213,14 +271,31 @@ def add_options(parser: argparse.ArgumentParser, help_overrides: dict[str, str] 
             parser.add_argument(o.flag, dest=name, action="store_false" if default else "store_true",
                                 help=f"do not {text}" if default else text)
             continue
+        if default == ():  # a setting given once per item (each --section adds one)
+            parser.add_argument(o.flag, dest=name, type=_argument_type(o.kind), action="append", default=None,
+                                metavar=o.metavar, help=text)
+            continue
         choices = [o.kind(c[0]) for c in o.choices] or None
         parser.add_argument(o.flag, dest=name, type=o.kind, default=default, choices=choices, metavar=o.metavar,
                             help=text)
 
 
+def _argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """`parse` for argparse: its one-line DanceNetError becomes argparse's usage error."""
+    def typed(text: str) -> Any:
+        try:
+            return parse(text)
+        except DanceNetError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    return typed
+
+
 def options_from(args: argparse.Namespace) -> dict[str, Any]:
     """The DanceRequest fields `add_options` parsed (weights and library as given, as str and Path)."""
     values = {name: getattr(args, name) for name, _default, o in options() if o.flag is not None}
+    for name, default, _o in options():
+        if default == () and name in values:  # the appended items, one tuple
+            values[name] = tuple(item for given in values[name] or () for item in given)
     if values.get("weights") is not None:
         values["weights"] = str(values["weights"])
     return values

@@ -26,17 +26,16 @@ from .representation import heading_frames
 RETURN_MODES = ("repeat", "mirror", "anew")
 
 
-def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str,
-                  keep_until_s: float = 0.0) -> tuple[Motion, np.ndarray]:
+def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, keep_until_s: float = 0.0,
+                  section_modes: dict[str, str] | None = None) -> tuple[Motion, np.ndarray]:
     """`motion` (danced from `start_s` seconds into the song) with each returning phrase danced as its first
     hearing, and the source frame of every output frame [T] (its own index where nothing was copied), for
-    whatever else follows the frames (the predicted foot contacts)."""
+    whatever else follows the frames (the predicted foot contacts). `section_modes` gives some sections (by
+    name: A2) a mode of their own."""
     frame_map = np.arange(motion.num_frames, dtype=float)
-    if mode == "anew":
-        return motion, frame_map
     edges = form.bar_starts - start_s  # bar boundaries in the dance's time
     fps = motion.fps
-    for target, target_end, source in _copies(form):
+    for target, target_end, source, how in _copies(form, mode, section_modes or {}):
         t0, t1 = edges[target] * fps, edges[target_end] * fps
         s0 = edges[source] * fps
         n_bars = target_end - target
@@ -54,27 +53,32 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str,
         src_frames[lead] = s0 - (first - frames[lead]) * (edges[source + 1] - edges[source]) / (
             edges[target + 1] - edges[target])
         copy = _sample(motion, src_frames)
-        if mode == "mirror":
+        if how == "mirror":
             copy = copy.mirrored()
-        motion = _lay_copy(motion, copy, first, last)
+        motion = carry_on(lay_in(motion, copy, first), motion, last)
         frame_map[first:last] = frame_map[np.clip(np.round(src_frames[DIFFERENCES:]).astype(int), 0,
                                                   motion.num_frames - 1)]
     return motion, frame_map
 
 
-def _copies(form: SongForm) -> list[tuple[int, int, int]]:
-    """(first bar, end bar, source's first bar) for each run of phrases that repeats consecutive earlier bars."""
-    out: list[tuple[int, int, int]] = []
+def _copies(form: SongForm, mode: str, section_modes: dict[str, str]) -> list[tuple[int, int, int, str]]:
+    """(first bar, end bar, source's first bar, mode) for each run of phrases that repeats consecutive earlier
+    bars and is danced again (repeat or mirror) by the mode of the section it lies in."""
+    out: list[tuple[int, int, int, str]] = []
     n_bars = len(form.bar_starts) - 1
     for k, phrase in enumerate(form.phrases):
         end = form.phrases[k + 1].first_bar if k + 1 < len(form.phrases) else n_bars
-        if phrase.source_bar is None:
+        section = next((s for s in form.sections if s.first_bar <= phrase.first_bar < s.first_bar + s.bars), None)
+        how = section_modes.get(section.name, mode) if section is not None else mode
+        if phrase.source_bar is None or how == "anew":
             continue
         end = min(end, phrase.first_bar + (phrase.first_bar - phrase.source_bar))  # never reads what it writes
-        if out and out[-1][1] == phrase.first_bar and out[-1][2] + (out[-1][1] - out[-1][0]) == phrase.source_bar:
-            out[-1] = (out[-1][0], end, out[-1][2])
+        last = out[-1] if out else None
+        if last is not None and last[1] == phrase.first_bar and last[3] == how and \
+                last[2] + (last[1] - last[0]) == phrase.source_bar:
+            out[-1] = (last[0], end, last[2], how)
         else:
-            out.append((phrase.first_bar, end, phrase.source_bar))
+            out.append((phrase.first_bar, end, phrase.source_bar, how))
     return out
 
 
@@ -106,19 +110,25 @@ def _placed(piece: Motion, at: Motion, k: int) -> Motion:
     return Motion(rots, root, piece.fps, piece.skeleton)
 
 
-def _lay_copy(motion: Motion, copy: Motion, first: int, last: int) -> Motion:
-    """`motion` with frames [first, last) replaced by `copy` (whose first DIFFERENCES frames stand for the
-    frames before `first`), joined on both sides."""
+def lay_in(motion: Motion, piece: Motion, first: int) -> Motion:
+    """`motion`'s frames before `first`, then `piece` after its first DIFFERENCES frames (which stand for the
+    frames before `first`): laid where the dancer stands and faces, the join blended."""
     h = DIFFERENCES
     lead_in = motion[first - h:first]
-    copy = _placed(copy, Motion(np.concatenate([lead_in.rotations, copy.rotations[h:]]),
-                                np.concatenate([lead_in.root_positions, copy.root_positions[h:]]),
-                                motion.fps, motion.skeleton), h - 1)
-    joined = splice(motion[:first], copy, first, h)
-    if last >= motion.num_frames:
-        return joined
-    rest = motion[last - h:]
-    rest = _placed(rest, Motion(np.concatenate([joined.rotations[-h:], rest.rotations[h:]]),
-                                np.concatenate([joined.root_positions[-h:], rest.root_positions[h:]]),
-                                motion.fps, motion.skeleton), h - 1)
-    return splice(joined, rest, last, h)
+    piece = _placed(piece, Motion(np.concatenate([lead_in.rotations, piece.rotations[h:]]),
+                                  np.concatenate([lead_in.root_positions, piece.root_positions[h:]]),
+                                  motion.fps, motion.skeleton), h - 1)
+    return splice(motion[:first], piece, first, h)
+
+
+def carry_on(head: Motion, dance: Motion, last: int) -> Motion:
+    """`head` (frames up to `last`), then `dance`'s frames from `last` on, carried on from where `head` ends
+    (turned and moved rigidly) and joined; `head` alone when `dance` has nothing after `last`."""
+    if last >= dance.num_frames:
+        return head
+    h = DIFFERENCES
+    rest = dance[last - h:]
+    rest = _placed(rest, Motion(np.concatenate([head.rotations[last - h:last], rest.rotations[h:]]),
+                                np.concatenate([head.root_positions[last - h:last], rest.root_positions[h:]]),
+                                dance.fps, dance.skeleton), h - 1)
+    return splice(head[:last], rest, last, h)

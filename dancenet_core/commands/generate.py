@@ -172,6 +172,7 @@ def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: G
         "footfix": args.footfix,
         "root_motion": args.root_motion,
         "returns": args.returns,
+        "sections": [str(o) for o in request.sections],
         "form": result.form.to_dict() if result.form is not None else None,  # the song's sections, song seconds
         "continued_from": str(args.continue_from) if args.continue_from else None,
         "at_s": args.at,

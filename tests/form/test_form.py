@@ -135,3 +135,47 @@ def test_both_engines_dance_returns_again_with_the_real_model(arranged_song, eng
         likeness[mode] = return_likeness(m.positions(), heading_frames(m), m.fps, result.form, result.start_s)
     assert likeness["repeat"] < 0.4, likeness
     assert likeness["anew"] > 0.6, likeness
+
+
+def test_section_settings_parse_and_bad_ones_are_one_line():
+    from dancenet_core.errors import DanceNetError
+    from dancenet_core.request import SectionOverride
+
+    assert SectionOverride.parse_many("A2:style=tango, energy=lively;B1:returns=anew") == (
+        SectionOverride("A2", style="tango", energy="lively"), SectionOverride("B1", returns="anew"))
+    assert str(SectionOverride("A2", energy="calm", returns="mirror")) == "A2:energy=calm,returns=mirror"
+    for bad in ("A2", "A2:speed=3", ":style=tango", "A2:style="):
+        with pytest.raises(DanceNetError) as info:
+            SectionOverride.parse(bad)
+        assert "\n" not in str(info.value) and "SECTION:key=value" in str(info.value)
+    for sections in ((SectionOverride("A2", energy="wild"),), (SectionOverride("A2", returns="twice"),),
+                     (SectionOverride("A2", energy="calm"), SectionOverride("A2", returns="anew"))):
+        with pytest.raises(DanceNetError):
+            DanceRequest(Path(__file__), sections=sections).check()
+
+
+def test_a_section_with_settings_of_its_own_and_a_section_danced_again_with_the_real_model(arranged_song):
+    from dancenet_core.errors import DanceNetError
+    from dancenet_core.request import SectionOverride
+
+    base = generate_dance(DanceRequest(arranged_song, seed=1))
+    form, fps = base.form, base.motions[0].fps
+    b1, c1 = (next(s for s in form.sections if s.name == n) for n in ("B1", "C1"))
+    lively = generate_dance(DanceRequest(arranged_song, seed=1, sections=(SectionOverride("B1", energy="lively"),)))
+    m, b = lively.motions[0], base.motions[0]
+    before = slice(0, int(b1.start_s * fps))
+    assert np.array_equal(m.rotations[before], b.rotations[before])  # A1 as it was
+    inside = slice(int(b1.start_s * fps) + 10, int(b1.end_s * fps))
+    speed = [np.linalg.norm(np.diff(x.positions()[inside], axis=0), axis=-1).mean() for x in (m, b)]
+    assert speed[0] > speed[1]  # danced anew, livelier
+    # B2 returns B1: it repeats the section as newly danced, not the old one.
+    assert return_likeness(m.positions(), heading_frames(m), fps, form) < 0.4
+    # One section danced anew in a kept dance: everything before it kept exactly, the section new.
+    redo = generate_dance(DanceRequest(arranged_song, seed=9, continue_from=b, at_s=1.0, redo_section="C1"))
+    r = redo.motions[0]
+    assert r.num_frames == b.num_frames
+    assert np.array_equal(r.rotations[: int(c1.start_s * fps)], b.rotations[: int(c1.start_s * fps)])
+    assert not np.allclose(r.rotations[int(c1.start_s * fps) + 10:int(c1.end_s * fps)],
+                           b.rotations[int(c1.start_s * fps) + 10:int(c1.end_s * fps)], atol=0.05)
+    with pytest.raises(DanceNetError, match="has no section 'Z9'; its sections are A1, B1"):
+        generate_dance(DanceRequest(arranged_song, sections=(SectionOverride("Z9", energy="calm"),)))
