@@ -1,5 +1,5 @@
-"""`dancenet weights upgrade FILE...`: convert TRUSTED weights files of the old pickled format, in place, to
-plain tensors that load with `weights_only=True` (same numbers).
+"""`dancenet weights upgrade FILE...`: convert weights files of the old pickled format, in place, to plain
+tensors that load with `weights_only=True` (same numbers); anything but that format's classes is refused.
 `dancenet weights export [--weights DIR]`: write the plain arrays generation runs on (`.npz`, no torch) from
 the DanceNet, style classifier and Foot Constraint Model checkpoints in DIR (training does this itself)."""
 
@@ -15,7 +15,7 @@ from ..nets.export import export_runtime
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
-    up = sub.add_parser("upgrade", help="convert TRUSTED old weights files in place to the safe format")
+    up = sub.add_parser("upgrade", help="convert old weights files in place to the safe format")
     up.add_argument("files", nargs="+", type=Path)
     up.set_defaults(handler=_upgrade)
     ex = sub.add_parser("export", help="write the runtime's .npz files from the checkpoints (.pt) in a folder")
