@@ -4,6 +4,7 @@ place together, so runs into one folder never mix their outputs."""
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 import tempfile
@@ -106,15 +107,32 @@ def _folder_lock(folder: Path) -> Iterator[None]:
         return
     import msvcrt
 
-    fd = os.open(folder / ".dancenet.lock", os.O_RDWR | os.O_CREAT)
     try:
-        while True:
+        fd = os.open(folder / ".dancenet.lock", os.O_RDWR | os.O_CREAT)
+    except OSError as e:
+        raise _lock_error(folder, e) from e
+    try:
+        for attempt in range(_LOCK_TRIES):
             try:
-                msvcrt.locking(fd, msvcrt.LK_LOCK, 1)  # gives up after 10 s; the holder only renames files
+                msvcrt.locking(fd, msvcrt.LK_LOCK, 1)
                 break
-            except OSError:
-                continue
-        yield
+            except OSError as e:  # EDEADLOCK: still held after LK_LOCK's 10 s; anything else will not pass
+                if e.errno != errno.EDEADLOCK or attempt == _LOCK_TRIES - 1:
+                    raise _lock_error(folder, e) from e
+        try:
+            yield
+        finally:
+            msvcrt.locking(fd, msvcrt.LK_UNLCK, 1)
     finally:
         os.close(fd)
+
+
+# Windows' LK_LOCK tries for 10 s before it gives up; the holder only renames files, so a minute in all is
+# another run that hangs.
+_LOCK_TRIES = 6
+
+
+def _lock_error(folder: Path, e: OSError) -> DanceNetError:
+    return DanceNetError(f"cannot lock the output folder {folder}: {e.strerror or e}; if another dancenet run "
+                         "writes there, wait for it, else choose another folder")
 

@@ -5,6 +5,7 @@ The dance itself is a stand-in (`_fake_generate`): these tests are about what is
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shlex
@@ -288,3 +289,47 @@ def test_a_losing_run_keeps_the_winners_files_and_leaves_nothing(tmp_path: Path,
     assert sorted(p.name for p in out.iterdir()) == ["song.npz"]
     assert (out / "song.npz").read_text() == "another run's"
     assert time.perf_counter() - t < 60
+
+
+class _Msvcrt:
+    """Windows' msvcrt.locking as a stand-in: each call recorded; a lock attempt fails with `error` (after ten
+    tries of a second each, as Windows' LK_LOCK does) while `error` is set. A call past 100 means the lock
+    spins."""
+
+    LK_UNLCK, LK_LOCK = 0, 1
+
+    def __init__(self, error: OSError | None) -> None:
+        self.error, self.calls = error, []
+
+    def locking(self, fd: int, mode: int, nbytes: int) -> None:
+        self.calls.append(mode)
+        if len(self.calls) > 100:
+            raise RecursionError("the lock spins")
+        if mode == self.LK_LOCK and self.error is not None:
+            raise self.error
+
+
+def _claim_on_windows(folder: Path, msvcrt: _Msvcrt, monkeypatch: pytest.MonkeyPatch) -> None:
+    from dancenet_core import outputs
+
+    monkeypatch.setitem(sys.modules, "msvcrt", msvcrt)
+    monkeypatch.setattr(os, "name", "nt")
+    try:
+        with outputs._folder_lock(folder):
+            pass
+    finally:
+        monkeypatch.setattr(os, "name", "posix")
+
+
+def test_the_windows_folder_lock_is_released_and_gives_up_on_errors(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Taken, the lock is released before its file is closed; a lock that cannot be taken (a permission error,
+    a holder that never lets go) ends in one line naming the folder instead of trying for ever."""
+    free = _Msvcrt(None)
+    _claim_on_windows(tmp_path, free, monkeypatch)
+    assert free.calls == [free.LK_LOCK, free.LK_UNLCK]
+    for error in (PermissionError(13, "Permission denied"), OSError(errno.EDEADLOCK, "Resource deadlock avoided")):
+        held = _Msvcrt(error)
+        with pytest.raises(DanceNetError, match=f"cannot lock the output folder {tmp_path}"):
+            _claim_on_windows(tmp_path, held, monkeypatch)
+        assert held.LK_UNLCK not in held.calls
