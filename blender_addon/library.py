@@ -46,12 +46,13 @@ def chosen_library(props: bpy.types.PropertyGroup, drawn: bool = False) -> Path 
 
 def library_styles(folder: Path | None) -> list[str]:
     """The styles of a built motion library's clips (None: the shipped one), or [] while it is missing or not
-    built (Generate Dance then says why): the Style menu's choices for the library engine."""
+    built (Generate Dance then says why): the Style menu's choices for the library engine. An ImportError (a
+    broken install) is raised: the Style menu shows its reason."""
     try:
         from dancenet_core.engines import get_engine
 
         return get_engine("library").styles(DanceRequest(Path(), library=folder))
-    except (ImportError, DanceNetError, OSError):
+    except (DanceNetError, OSError):
         return []
 
 

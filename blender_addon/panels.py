@@ -9,7 +9,7 @@ from dancenet_core.errors import DanceNetError
 from dancenet_core.request import panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import bonemap, library, operators, rigchoice, takes
+from . import bonemap, library, operators, properties, rigchoice, takes
 from .menus import DANCENET_MT_presets
 from .rigdef import REQUIRED_JOINTS
 
@@ -160,6 +160,8 @@ class _Dance(_SubPanel):
         props = context.scene.dancenet
         col = self.layout.column()
         col.prop(props, "style")
+        if properties.styles_problem():
+            col.label(text=properties.styles_problem(), icon="ERROR")
         for name, _default, _option in panel_options():  # the request's settings, in its order
             if name == "library" and props.engine != "library":  # a library folder means nothing to DanceNet
                 continue

@@ -35,13 +35,14 @@ _styles_cache: list[str] = []
 
 
 def available_styles() -> list[str]:
-    """The shipped model's styles, or [] while the model is missing."""
+    """The shipped model's styles, or [] while the model is missing (Generate Dance says why). An ImportError
+    (a broken install) is raised: the Style menu shows its reason."""
     if not _styles_cache:
         try:
             from dancenet_core.generate import available_styles as core_styles
 
             _styles_cache.extend(core_styles())
-        except (ImportError, DanceNetError, OSError):
+        except (DanceNetError, OSError):
             return []
     return list(_styles_cache)
 

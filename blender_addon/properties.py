@@ -9,6 +9,7 @@ from typing import Any
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from dancenet_core.errors import first_line
 from dancenet_core.request import Option, panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
@@ -16,6 +17,14 @@ from . import library, operators, pipeline, takes
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
 _style_items: list[tuple[str, str, str, int]] = []
+
+
+_styles_problem: list[str] = []
+
+
+def styles_problem() -> str | None:
+    """Why the Style menu last came out without the styles (an import that failed), or None."""
+    return _styles_problem[0] if _styles_problem else None
 
 
 def _style_label(style: str) -> str:
@@ -29,10 +38,15 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
     if analysis:
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
-    if self.engine == "library":  # the styles of the library's clips
-        styles = library.library_styles(library.chosen_library(self, drawn=True))
-    else:
-        styles = pipeline.available_styles()
+    try:
+        if self.engine == "library":  # the styles of the library's clips
+            styles = library.library_styles(library.chosen_library(self, drawn=True))
+        else:
+            styles = pipeline.available_styles()
+        _styles_problem[:] = []
+    except ImportError as e:  # a broken install: said under the menu (styles_problem), not an empty menu
+        styles = []
+        _styles_problem[:] = [f"Styles cannot be listed: {first_line(e)}; reinstall the DanceNet extension"]
     for i, style in enumerate(styles, start=1):
         label = _style_label(style)
         if style in probs:

@@ -3,6 +3,8 @@ UIList, the missing optional joints in one line, and the scene's true frame rate
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 from doubles import mixamo_rest, synthetic_motion, write_song
@@ -10,7 +12,8 @@ from scene_helpers import MM, bpy, build_armature, fk_world, generate, panel_scr
 
 from dancenet_core.skeleton import JOINT_NAMES
 
-FOLDS = ["Music", "Dance", "Rig", "Takes", "Export"]
+FOLDS = ["Music", "Dance", "Sections", "Rig", "Takes", "Export"]
+SHOWN = [f for f in FOLDS if f != "Sections"]  # the stand-in generator reads no sections (test_addon_form.py)
 SUMMARY = "30 optional joints not on this rig (fingers: 30)"  # a Mixamo rig without its fingers
 
 
@@ -35,7 +38,7 @@ def test_sub_panels_register_under_the_main_panel_and_draw(scene, addon, song, s
     assert generate(scene, song) == {"FINISHED"}
     root = shot.record_panel(bpy.context, main)
     folds = sub_panels(root)
-    assert list(folds) == FOLDS
+    assert list(folds) == SHOWN
     assert [f.closed for f in folds.values()] == [False, False, False, False, True]
     own = [child for child in root.children if getattr(child, "kind", "") != "panel"]
     assert "Generate Dance" in {w.text for child in own for w in shot.walk(child)}  # the main panel's, on top
@@ -117,3 +120,18 @@ def test_a_scene_at_29_97_fps_is_keyed_at_its_true_rate(scene, addon, tmp_path):
         scene.frame_set(first + f)
         heads = world_heads(rig, JOINT_NAMES)
         assert np.abs((heads - heads[0]) - (expected[f] - expected[f][0])).max() < MM
+
+
+@pytest.mark.parametrize("engine", ["dancenet", "library"])
+def test_a_style_menu_that_cannot_be_filled_says_why(addon, monkeypatch, engine):
+    """An install that cannot import the generator (a dependency missing) is not a model still missing: the
+    Dance panel says so under the Style menu, with the import's own reason, instead of an empty menu."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.dancenet.engine = engine
+    monkeypatch.setattr(addon.pipeline, "_styles_cache", [])
+    for module in ("dancenet_core.generate", "dancenet_core.engines"):
+        monkeypatch.setitem(sys.modules, module, None)  # what a missing dependency makes of the import
+    shot = panel_screenshot()
+    texts = [w.text for w in shot.walk(shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]))]
+    problem = [t for t in texts if t.startswith("Styles cannot be listed:")]
+    assert len(problem) == 1 and "dancenet_core." in problem[0] and "reinstall" in problem[0], texts
