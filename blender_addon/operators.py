@@ -150,6 +150,23 @@ class DANCENET_OT_continue(_Generate, bpy.types.Operator):
         return pipeline.prepare_continue(context.scene, export_target(context))
 
 
+class DANCENET_OT_redo_section(_Generate, bpy.types.Operator):
+    """Keep the active take and dance one section of its song anew (new seed, the section's own settings), as a
+    new take; the dance after the section flows on from it"""
+
+    bl_idname = "dancenet.redo_section"
+    bl_label = "Dance Section Anew"
+
+    section: StringProperty(name="Section", description="The section of the song's form (A1, B1, A2, ...)")
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return DANCENET_OT_continue.poll(context)
+
+    def plan(self, context: bpy.types.Context) -> pipeline.Plan:
+        return pipeline.prepare_redo(context.scene, export_target(context), self.section)
+
+
 class DANCENET_OT_build_library(_Background, bpy.types.Operator):
     """Read and analyse the library's clips: the Library folder's BVH and FBX files, or the armature actions in this
     file (in the background; Esc cancels), so that the library engine can dance from them"""
@@ -410,6 +427,7 @@ class DANCENET_OT_add_rig(bpy.types.Operator):
 CLASSES = (
     DANCENET_OT_generate,
     DANCENET_OT_continue,
+    DANCENET_OT_redo_section,
     DANCENET_OT_build_library,
     DANCENET_OT_choose_take,
     DANCENET_OT_cancel,

@@ -181,6 +181,38 @@ class _Dance(_SubPanel):
             row.prop(props, "part_end", text="To")
 
 
+class _Sections(_SubPanel):
+    bl_label = "Sections"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        """Shown once a dance to the chosen song has read its form."""
+        props = context.scene.dancenet
+        analysis = props.analysis_for(props.current_song(context.scene))
+        return bool(analysis and analysis["sections"])
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """The song's sections (A1, B1, A2, ...: a letter that returns is music heard again), each with settings
+        of its own for the next Generate, and a button that dances just that section of the active take anew."""
+        props = context.scene.dancenet
+        analysis = props.analysis_for(props.current_song(context.scene))
+        redo = operators.DANCENET_OT_redo_section.poll(context)
+        for section in analysis["sections"]:
+            item = props.sections.get(section["name"])
+            box = self.layout.box().column(align=True)
+            row = box.row(align=True)
+            row.label(text=f"{section['name']}   {section['start_s']:.1f}-{section['end_s']:.1f} s")
+            sub = row.row(align=True)
+            sub.enabled = redo
+            sub.operator("dancenet.redo_section", text="", icon="FILE_REFRESH").section = section["name"]
+            if item is not None:
+                row = box.row(align=True)
+                row.prop(item, "style", text="")
+                row.prop(item, "energy", text="")
+                row.prop(item, "returns", text="")
+
+
 class _Rig(_SubPanel):
     bl_label = "Rig"
 
@@ -253,7 +285,7 @@ def make_sub_panels(parent: type[bpy.types.Panel]) -> tuple[type[bpy.types.Panel
             "bl_space_type": parent.bl_space_type, "bl_parent_id": parent.bl_idname,
             "bl_idname": f"{parent.bl_idname}_{fold.bl_label.lower()}",
         })  # fmt: skip
-        for fold in (_Music, _Dance, _Rig, _Takes, _Export)
+        for fold in (_Music, _Dance, _Sections, _Rig, _Takes, _Export)
     )
 
 

@@ -16,7 +16,7 @@ from typing import Any
 import bpy
 
 from dancenet_core.errors import DanceNetError
-from dancenet_core.request import DanceRequest, panel_options
+from dancenet_core.request import DanceRequest, SectionOverride, panel_options
 
 from . import bonemap, markers, rig, rigchoice, rigcontrols, rollback, song, takes
 from .job import Generator, error_message
@@ -59,6 +59,7 @@ class Placement:
     with_mesh: bool = True
     frame_start: int | None = None  # a continued take starts where the take it continues did
     continues: str | None = None  # the action a continued take grows from
+    redo_section: str | None = None  # the section a take danced anew (its name says so)
 
 
 @dataclass
@@ -115,7 +116,7 @@ def prepare(scene: bpy.types.Scene) -> Plan:
                           with_mesh=props.with_mesh)
     # A style the installed model no longer has reads back as "": fall back to Auto.
     request = DanceRequest(path, **panel_settings(props), style=props.style or "auto", start_s=start_s,
-                           end_s=end_s, fps=fps)
+                           end_s=end_s, fps=fps, sections=section_settings(props, str(path)))
     if request.engine == "library" and props.library_source == "ACTIONS":
         request = replace(request, library=_actions_library(props))
     request.check()
@@ -133,6 +134,22 @@ def prepare(scene: bpy.types.Scene) -> Plan:
             raise DanceNetError(f"Root Bone motion needs a bone above the hips; '{hips}' of '{target.name}' has "
                                 "none: choose New Rig (it gets a root bone) or another Root Motion")
     return Plan(request, placement)
+
+
+def section_settings(props: Any, song_path: str) -> tuple[SectionOverride, ...]:
+    """The Sections panel's settings that differ from the dance's, for the sections of the song's last analysis
+    (none when the song was not analysed yet, or another song was)."""
+    from .properties import AS_DANCE
+
+    analysis = props.analysis_for(song_path)
+    names = {s["name"] for s in analysis["sections"]} if analysis else set()
+    out = []
+    for item in props.sections:
+        values = {key: getattr(item, key) for key in SectionOverride.KEYS}
+        values = {k: v for k, v in values.items() if v and v != AS_DANCE}
+        if item.name in names and values:
+            out.append(SectionOverride(item.name, **values))
+    return tuple(out)
 
 
 def _actions_library(props: Any) -> Path:
@@ -167,6 +184,38 @@ def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -
     request.check()
     placement = Placement(armature=rig_obj.name, bone_map=bonemap.BoneMap(action.name, info["bone_map"]),
                           add_markers=False, frame_start=first, continues=action.name)
+    return Plan(request, placement)
+
+
+def prepare_redo(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None, section: str) -> Plan:
+    """A Plan that keeps the rig's active take and dances one section of its song anew (new seed; the section's
+    own style and energy from the Sections panel), the take after it carried on: a new take beside the old."""
+    action = rig_obj.animation_data.action if rig_obj is not None and rig_obj.animation_data else None
+    info = takes.take_info(action)
+    if info is None:
+        raise DanceNetError("Dance Section Anew needs a rig whose active action is a DanceNet take: "
+                            "generate a dance first")
+    path = song.check_song(info["song"])
+    fps = song.scene_fps(scene)
+    first = round(action.frame_range[0])
+    analysis = scene.dancenet.analysis_for(str(path))
+    found = next((s for s in (analysis or {}).get("sections", []) if s["name"] == section), None)
+    if found is None:
+        raise DanceNetError(f"The take's song has no section '{section}': generate a dance to it again so its "
+                            "sections are read")
+    own = next((o for o in section_settings(scene.dancenet, str(path)) if o.section == section), None)
+    redone = [a for a in bpy.data.actions if (takes.take_info(a) or {}).get("continues") == action.name]
+    settings = panel_settings(info) | {"seed": info["seed"] + 1 + len(redone), "takes": 1}
+    motion = takes.take_motion(action)
+    at_s = min(max(found["start_s"] - info["start_s"], 1.0 / fps), motion.duration)  # kept exactly before it
+    request = DanceRequest(path, **settings, style=(own.style if own and own.style else info["style"]),
+                           start_s=info["start_s"], end_s=info["end_s"], fps=fps, continue_from=motion, at_s=at_s,
+                           redo_section=section)
+    if own is not None and own.energy:
+        request = replace(request, energy=own.energy)
+    request.check()
+    placement = Placement(armature=rig_obj.name, bone_map=bonemap.BoneMap(action.name, info["bone_map"]),
+                          add_markers=False, frame_start=first, continues=action.name, redo_section=section)
     return Plan(request, placement)
 
 
@@ -263,7 +312,9 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
     frames = 0
     for k, (motion, keyed) in enumerate(zip(result.motions, shape_takes(result.motions, req), strict=True), 1):
         name = takes.action_name(req.song, result.style, req.seed, k, len(result.motions))
-        if place.continues is not None:
+        if place.redo_section is not None:
+            name = f"{name} · {place.redo_section} anew"
+        elif place.continues is not None:
             name = f"{name} · from frame {frame_start + round(req.at_s * fps)}"
         action = keyframes.apply_motion(target, keyed, bone_map, name, frame_start, None, req.root_motion)
         action[takes.ACTION_PROP] = True

@@ -7,10 +7,18 @@ from pathlib import Path
 from typing import Any
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 from dancenet_core.errors import first_line
-from dancenet_core.request import Option, panel_options
+from dancenet_core.request import ENERGY_SCALES, RETURN_CHOICES, Option, panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
 from . import library, operators, pipeline, takes
@@ -54,6 +62,32 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
         items.append((style, label, f"Dance {_style_label(style)}", i))
     _style_items[:] = items
     return _style_items
+
+
+_section_style_items: list[tuple[str, str, str, int]] = []
+AS_DANCE = "same"  # a section setting that follows the dance's
+
+
+def _section_styles(_self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    """A section's style: the dance's, or one of the styles the Style menu offers."""
+    props = context.scene.dancenet if context is not None else None
+    styles = [item for item in (_styles(props, context) if props is not None else []) if item[0] != "auto"]
+    _section_style_items[:] = [(AS_DANCE, "As the Dance", "The dance's style", 0),
+                               *((k, label.split("  ")[0], d, i) for i, (k, label, d, _n) in enumerate(styles, 1))]
+    return _section_style_items
+
+
+class DanceNetSection(bpy.types.PropertyGroup):
+    """Settings of one section of the song's form (A1, B1, A2, ...: its name is the item's name)."""
+
+    style: EnumProperty(name="Style", items=_section_styles,
+                        description="Dance this section in another style (it is then danced anew)")
+    energy: EnumProperty(name="Energy", default=AS_DANCE, items=[
+        (AS_DANCE, "As the Dance", "The dance's energy"),
+        *((e, e.replace("-", " ").title(), f"Dance this section {e} (it is then danced anew)") for e in ENERGY_SCALES)])
+    returns: EnumProperty(name="Returns", default=AS_DANCE, items=[
+        (AS_DANCE, "As the Dance", "As the Dance panel's Returns"), *RETURN_CHOICES],
+        description="Where this section's music returns an earlier section's: repeat, mirror or dance anew")
 
 
 def _is_armature(_self: Any, obj: bpy.types.Object) -> bool:
@@ -171,6 +205,7 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     take_index: IntProperty(name="Take", get=_get_take_index, set=_set_take_index, options=set(),
                             description="The take that plays: its NLA track is on, the other takes' are muted")
     analysis: StringProperty(options={"HIDDEN"})  # JSON of the last style analysis, kept with the file
+    sections: CollectionProperty(type=DanceNetSection)  # per section of the last analysis' form, by name
     library_source: EnumProperty(
         name="Library Source",
         items=[
@@ -191,13 +226,25 @@ class DanceNetSettings(bpy.types.PropertyGroup):
         return bpy.path.abspath(sound.filepath, library=sound.library) if sound else ""
 
     def remember_analysis(self, song: Path, result: Any) -> None:
+        """Keep what the analysis heard (tempo, style, the form's sections) for the panel, and a settings item
+        per section (those kept from before keep their settings)."""
+        form = getattr(result, "form", None)
+        sections = [] if form is None else [
+            {"name": s.name, "start_s": float(s.start_s), "end_s": float(s.end_s)} for s in form.sections]
         self.analysis = json.dumps({
             "song": str(song), "style": result.style, "tempo_bpm": float(result.tempo_bpm),
-            "probabilities": {k: float(v) for k, v in result.style_probabilities.items()},
+            "probabilities": {k: float(v) for k, v in result.style_probabilities.items()}, "sections": sections,
         })  # fmt: skip
+        names = [s["name"] for s in sections]
+        for i in reversed(range(len(self.sections))):
+            if self.sections[i].name not in names:
+                self.sections.remove(i)
+        for name in names:
+            if name not in self.sections:
+                self.sections.add().name = name
 
     def analysis_for(self, song: str) -> dict[str, Any] | None:
-        """The last analysis, if it was of `song`."""
+        """The last analysis, if it was of `song` (its sections a list, empty for an older file's)."""
         if not self.analysis or not song:
             return None
         data = takes.stored_json(self.analysis, dict)  # a damaged or crafted file: no analysis
@@ -205,7 +252,12 @@ class DanceNetSettings(bpy.types.PropertyGroup):
                 and isinstance(data.get("tempo_bpm"), int | float) and isinstance(data.get("probabilities"), dict)
                 and all(isinstance(k, str) and isinstance(v, int | float) for k, v in data["probabilities"].items())):
             return None
-        return data if Path(data["song"]) == Path(song) else None
+        sections = data.get("sections", [])
+        if not (isinstance(sections, list) and all(
+                isinstance(s, dict) and isinstance(s.get("name"), str) and isinstance(s.get("start_s"), int | float)
+                and isinstance(s.get("end_s"), int | float) for s in sections)):
+            sections = []
+        return data | {"sections": sections} if Path(data["song"]) == Path(song) else None
 
 
 class DanceNetRuntime(bpy.types.PropertyGroup):
@@ -218,7 +270,7 @@ class DanceNetRuntime(bpy.types.PropertyGroup):
 
 
 DanceNetSettings.__annotations__.update({name: _setting(default, o) for name, default, o in panel_options()})
-CLASSES = (DanceNetSettings, DanceNetRuntime)
+CLASSES = (DanceNetSection, DanceNetSettings, DanceNetRuntime)
 
 
 @bpy.app.handlers.persistent

@@ -67,7 +67,7 @@ _ROOT_LABELS = {
 _ROOT_CHOICES = tuple((mode, *_ROOT_LABELS[mode]) for mode in ROOT_MODES)
 
 
-_RETURN_CHOICES = (
+RETURN_CHOICES = (
     ("repeat", "Repeat", "A returning section is danced as it was the first time"),
     ("mirror", "Mirror", "A returning section is danced as the first time, left and right swapped"),
     ("anew", "Anew", "Every section is danced anew"))
@@ -156,7 +156,7 @@ class DanceRequest:
         "floor carries path and heading)", str, "--root-motion", "Root Motion", choices=_ROOT_CHOICES))
     returns: str = _option("repeat", Option(
         "where the music returns (a chorus heard again): repeat the dance of its first hearing, mirror it (left "
-        "and right swapped) or dance it anew", str, "--returns", "Returns", choices=_RETURN_CHOICES))
+        "and right swapped) or dance it anew", str, "--returns", "Returns", choices=RETURN_CHOICES))
     sections: tuple[SectionOverride, ...] = _option((), Option(
         "settings of one section of the song's form (`dancenet analyze` names them A1, B1, A2, ...), repeatable: "
         "SECTION:style=S,energy=E,returns=R (e.g. A2:style=tango,energy=lively)", SectionOverride.parse_many,
@@ -199,7 +199,7 @@ class DanceRequest:
                 raise DanceNetError(f"unknown {name.replace('_', ' ')} '{getattr(self, name)}'; choose one of: "
                                     f"{', '.join(allowed)}")
         for o in self.sections:
-            for key, allowed in (("energy", ENERGY_SCALES), ("returns", [c[0] for c in _RETURN_CHOICES])):
+            for key, allowed in (("energy", ENERGY_SCALES), ("returns", [c[0] for c in RETURN_CHOICES])):
                 if getattr(o, key) is not None and getattr(o, key) not in allowed:
                     raise DanceNetError(f"unknown {key} '{getattr(o, key)}' for section {o.section}; choose one "
                                         f"of: {', '.join(allowed)}")

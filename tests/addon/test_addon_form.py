@@ -4,10 +4,12 @@ reports a form, as generate_dance does)."""
 from __future__ import annotations
 
 import numpy as np
-from doubles import make_fake_generator
-from scene_helpers import generate
+import pytest
+from doubles import make_fake_generator, write_song
+from scene_helpers import bpy, generate, panel_screenshot, snapshot
 
 from dancenet_core.music.form import Phrase, Section, SongForm
+from tests.made_up import arranged_training_song
 
 FORM = SongForm(np.array([0.0, 0.5, 1.0, 1.5, 2.0]), (Phrase(0, None, 1.0), Phrase(2, 0, 0.9)),
                 (Section("A", 1, 0.0, 1.0, 0, 2, 1.0), Section("A", 2, 1.0, 2.0, 2, 2, 0.9)))
@@ -28,3 +30,79 @@ def test_sections_are_named_on_the_timeline_and_replaced_by_the_next_generate(sc
     # The first section on bar 1 (named for it), the return at 1.0 s (frame 25 at 24 fps, between downbeats).
     assert sorted((m.name, m.frame) for m in scene.timeline_markers) == sorted(
         [("A1", 1), ("·", 13), ("·", 25), ("A2", 25), ("·", 37), ("A2", 40)])
+
+
+def test_section_settings_reach_the_next_generate_and_a_section_is_danced_anew(scene, addon, song, monkeypatch):
+    from doubles import CALLS
+
+    from dancenet_core.request import SectionOverride
+
+    fake = make_fake_generator()
+
+    def with_form(request, progress=None, should_cancel=None):
+        result = fake(request, progress, should_cancel)
+        result.form = FORM
+        return result
+
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: with_form)
+    props = scene.dancenet
+    assert not bpy.ops.dancenet.redo_section.poll()  # no take yet
+    assert generate(scene, song, seed=3) == {"FINISHED"}
+    assert [item.name for item in props.sections] == ["A1", "A2"]  # one settings item per section of the form
+    shot = panel_screenshot()
+    folds = {c.title: c for c in shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]).children
+             if getattr(c, "kind", "") == "panel"}
+    drawn = {w.text for w in shot.walk(folds["Sections"])}
+    assert {"A1   0.0-1.0 s", "A2   1.0-2.0 s"} <= drawn, drawn
+    assert CALLS[-1]["sections"] == ()
+    props.sections["A2"].energy = "lively"
+    props.sections["A1"].returns = "anew"
+    assert generate(scene, song, seed=3) == {"FINISHED"}
+    assert CALLS[-1]["sections"] == (SectionOverride("A1", returns="anew"), SectionOverride("A2", energy="lively"))
+    rig = bpy.data.objects["DanceNet Dancer"]
+    take = rig.animation_data.action
+    assert bpy.ops.dancenet.redo_section(section="A2") == {"FINISHED"}
+    call = CALLS[-1]
+    assert (call["redo_section"], call["energy"], call["seed"]) == ("A2", "lively", 4)
+    assert call["continue_from"] is not None and call["at_s"] == pytest.approx(1.0)
+    assert rig.animation_data.action.name.endswith("seed 4 · A2 anew") and take.name in bpy.data.actions
+    before = snapshot(scene)
+    with pytest.raises(RuntimeError, match="has no section 'B7'"):
+        bpy.ops.dancenet.redo_section(section="B7")
+    assert snapshot(scene) == before
+    # Another song: its sections are not known until it is danced, so no section settings reach its dance.
+    other = write_song(song.parent / "Other.wav")
+    assert generate(scene, other, seed=3) == {"FINISHED"}
+    assert CALLS[-1]["sections"] == ()
+
+
+def test_a_section_of_a_real_dance_danced_anew_in_blender(addon, tmp_path, monkeypatch):
+    """The shipped model on a song arranged A B A C A B from training songs: C1 danced anew in a new take, the
+    frames before it kept."""
+    song = arranged_training_song(tmp_path / "abacab.wav")
+    if song is None:
+        pytest.skip("the Dance with Melody songs are not here")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.fps = 25
+    assert generate(scene, song, seed=1) == {"FINISHED"}
+    props = scene.dancenet
+    names = [item.name for item in props.sections]
+    assert names == ["A1", "B1", "A2", "C1", "A3", "B2"], names
+    c1 = next(s for s in props.analysis_for(str(song))["sections"] if s["name"] == "C1")
+    rig = bpy.data.objects["DanceNet Dancer"]
+    frames = range(1, round(c1["end_s"] * 25))
+    before = _heads(scene, rig, frames)
+    assert bpy.ops.dancenet.redo_section(section="C1") == {"FINISHED"}
+    after = _heads(scene, rig, frames)
+    cut = round(c1["start_s"] * 25)
+    assert np.abs(after[:cut - 1] - before[:cut - 1]).max() < 1e-3  # before C1: kept
+    assert np.abs(after[cut + 25:] - before[cut + 25:]).max() > 0.05  # C1: another dance
+
+
+def _heads(scene, rig, frames) -> np.ndarray:
+    out = []
+    for f in frames:
+        scene.frame_set(f)
+        out.append([np.array(rig.matrix_world @ b.head) for b in rig.pose.bones])
+    return np.array(out)

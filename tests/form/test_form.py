@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import soundfile as sf
 
 from dancenet_core.evaluation.form import body_poses, return_likeness
 from dancenet_core.generate import generate_dance
@@ -17,7 +16,7 @@ from dancenet_core.music.form import song_form
 from dancenet_core.representation import heading_frames
 from dancenet_core.request import DanceRequest
 from dancenet_core.returns import dance_returns
-from tests.made_up import analysis, data_root
+from tests.made_up import analysis, arranged_training_song
 
 BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s
 
@@ -101,22 +100,11 @@ def test_anew_leaves_the_dance_alone():
     assert out is motion
 
 
-TRAINING_SONGS = ("DANCE_W_1", "DANCE_W_2", "DANCE_W_4")  # three waltzes of the training split
-
-
 @pytest.fixture(scope="module")
 def arranged_song(tmp_path_factory) -> Path:
-    """A B A C A B from the 8 bars after the 4th downbeat of three training waltzes, cut on their downbeats."""
-    folder = data_root() / "dance_with_melody"
-    if not all((folder / f"{s}.ogg").is_file() for s in TRAINING_SONGS):
+    path = arranged_training_song(tmp_path_factory.mktemp("form") / "abacab.wav")
+    if path is None:
         pytest.skip("the Dance with Melody songs are not here")
-    parts = {}
-    for letter, name in zip("ABC", TRAINING_SONGS, strict=True):
-        down = analyze_music(folder / f"{name}.ogg").downbeat_times
-        audio, sr = sf.read(str(folder / f"{name}.ogg"), dtype="float32")
-        parts[letter] = audio[int(down[4] * sr):int(down[12] * sr)]
-    path = tmp_path_factory.mktemp("form") / "abacab.wav"
-    sf.write(str(path), np.concatenate([parts[c] for c in "ABACAB"]), sr)
     return path
 
 
