@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..library.build import build_library
+from ..library.store import MotionLibrary
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,9 +21,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.set_defaults(handler=_cmd_build)
 
 
+UNSURE = 0.25  # a clip whose tempo or meter scores less than this much better than the next reading is named
+
+
 def _cmd_build(args: argparse.Namespace) -> int:
     t = time.perf_counter()
     library, path = build_library(args.folder, force=args.force)
+    print(clip_table(library))
+    unsure = [n for n, c in zip(library.names, library.confidence, strict=True) if c < UNSURE]
+    if unsure:
+        print(f"unsure of the tempo or meter of {len(unsure)} clip{'s' if len(unsure) > 1 else ''} "
+              f"({', '.join(unsure[:5])}{'...' if len(unsure) > 5 else ''}): give them in manifest.csv (columns "
+              "file, bpm, meter) if they are wrong")
     styles = sorted({s for s in library.styles if s}) or ["none"]
     meters = ", ".join(f"{m}/4: {int((library.meter == m).sum())}" for m in sorted(set(library.meter.tolist())))
     print(f"{library.num_clips} clips, {library.duration_s / 60:.1f} min, {len(library.beats)} beats "
@@ -30,3 +40,15 @@ def _cmd_build(args: argparse.Namespace) -> int:
           f"{np.max(library.tempo_bpm):.0f} BPM; clips by meter {meters}; styles: {', '.join(styles)}; "
           f"{len(library.notes)} left out; {time.perf_counter() - t:.1f} s -> {path}")
     return 0
+
+
+def clip_table(library: MotionLibrary) -> str:
+    """One line per clip: its name, style, length, tempo, meter, confidence and what they were read from."""
+    width = min(max(len(n) for n in library.names), 40)
+    lines = [f"{'clip':{width}s}  {'style':10s} {'length':>7s} {'tempo':>9s} {'meter':>5s} {'sure':>5s}  from"]
+    for c, name in enumerate(library.names):
+        seconds = (library.clip_starts[c + 1] - library.clip_starts[c]) / library.fps
+        lines.append(f"{name[:width]:{width}s}  {library.styles[c][:10] or '-':10s} {seconds:6.1f}s "
+                     f"{library.tempo_bpm[c]:5.1f} BPM {library.meter[c]:3d}/4 {library.confidence[c]:5.2f}  "
+                     f"{library.source[c]}")
+    return "\n".join(lines)

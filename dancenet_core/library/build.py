@@ -11,7 +11,9 @@ add-on samples each mapped bone's world matrices (`ArmatureClip`), and `armature
 skeleton whatever the rig's rest pose (`jointmap.armature_pose`). The command line, without Blender, reads no FBX:
 a folder holding some answers so in one line.
 Clips are resampled to the library's 25 fps and put on the floor (`floor.floor_track`). A clip's style is its
-folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`).
+folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`, and
+optionally `bpm` and `meter`: the clip's tempo and beats per bar, taken over what `analysis.py` reads from the
+motion).
 Anything else in the folder is left out with a one-line note.
 
 Torch-free and without the data package (the add-on's Build Library runs it inside Blender on a worker thread:
@@ -101,6 +103,8 @@ class ArmatureClip:
     rest: np.ndarray
     pose: np.ndarray
     fps: float
+    bpm: float | None = None  # the clip's tempo and beats per bar where the user gave them (else read from motion)
+    meter: int | None = None
 
 
 def armature_motion(clip: ArmatureClip) -> Motion:
@@ -109,17 +113,56 @@ def armature_motion(clip: ArmatureClip) -> Motion:
     return _as_clip(rotation_motion(armature_pose(clip.joints, clip.rest, clip.pose, clip.fps, clip.name)), clip.name)
 
 
-def clip_styles(folder: Path, files: list[Path]) -> dict[Path, str]:
-    """Each clip's style: the manifest's `style` for its `file`, else the name of its folder below `folder`."""
-    styles = {f: (f.relative_to(folder).parts[0] if len(f.relative_to(folder).parts) > 1 else "") for f in files}
+@dataclass(frozen=True)
+class ClipHints:
+    """What a library's folder says of a clip: its style (its folder's name, or the manifest's `style`) and, from
+    the manifest, its tempo (`bpm`) and beats per bar (`meter`), which the analysis takes over what it reads."""
+
+    style: str = ""
+    bpm: float | None = None
+    meter: int | None = None
+
+
+MANIFEST_BPM = (30.0, 300.0)
+MANIFEST_METERS = (2, 3, 4, 6)
+
+
+def _manifest_number(folder: Path, line: int, column: str, text: str) -> float | None:
+    """A manifest cell as a number (None when empty); a one-line DanceNetError when it is none."""
+    text = text.strip()
+    if not text:
+        return None
+    lo, hi = MANIFEST_BPM
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if column == "bpm" and lo <= value <= hi:
+        return value
+    if column == "meter" and value in MANIFEST_METERS:
+        return value
+    want = f"beats per minute, {lo:g}-{hi:g}" if column == "bpm" else "beats per bar: 2, 3, 4 or 6"
+    raise DanceNetError(f"{folder / 'manifest.csv'}, line {line}: {column} '{text}' is not {want}; correct it or "
+                        "leave it empty to read it from the motion")
+
+
+def clip_hints(folder: Path, files: list[Path]) -> dict[Path, ClipHints]:
+    """Each clip's hints: the manifest's `style`, `bpm` and `meter` for its `file`, the style else the name of its
+    folder below `folder`."""
+    hints = {f: ClipHints(f.relative_to(folder).parts[0] if len(f.relative_to(folder).parts) > 1 else "")
+             for f in files}
     manifest = folder / "manifest.csv"
     if manifest.is_file():
         with open(manifest, newline="") as f:
-            for row in csv.DictReader(f):
-                path = folder / str(row.get("file", ""))
-                if path in styles and row.get("style"):
-                    styles[path] = str(row["style"]).strip()
-    return styles
+            for line, row in enumerate(csv.DictReader(f), start=2):
+                path = folder / str(row.get("file") or "")
+                if path not in hints:
+                    continue
+                bpm = _manifest_number(folder, line, "bpm", str(row.get("bpm") or ""))
+                meter = _manifest_number(folder, line, "meter", str(row.get("meter") or ""))
+                hints[path] = ClipHints(str(row.get("style") or "").strip() or hints[path].style, bpm,
+                                        None if meter is None else int(meter))
+    return hints
 
 
 def is_fbx(path: Path) -> bool:
@@ -159,9 +202,9 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
         raise DanceNetError(f"{folder} holds {len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''} "
                             f"({fbx_files[0].name}...), which only Blender reads: build this folder with Build "
                             "Library in the DanceNet add-on's panel")
-    styles = clip_styles(folder, files)
+    hints = clip_hints(folder, files)
     clips, notes = _read_clips(
-        [(f.name, str(f.relative_to(folder)), styles[f],
+        [(f.name, str(f.relative_to(folder)), hints[f],
           lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)) for f in files],
         report, progress, should_cancel)
     if not clips:
@@ -196,8 +239,8 @@ def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes:
     if not clips:
         raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
     done, left = _read_clips(
-        [("a clip", c, "", lambda c=c: _not_sampled(c)) if isinstance(c, str)
-         else (c.name, c.name, c.style, lambda c=c: armature_motion(c)) for c in clips],
+        [("a clip", c, ClipHints(), lambda c=c: _not_sampled(c)) if isinstance(c, str)
+         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), lambda c=c: armature_motion(c)) for c in clips],
         report, progress, should_cancel)
     if not done:
         raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
@@ -209,13 +252,13 @@ def _not_sampled(why: str) -> Motion:
     raise DanceNetError(why)
 
 
-def _read_clips(items: Sequence[tuple[str, str, str, Callable[[], Motion]]], report: Callable[[str], object],
+def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], Motion]]], report: Callable[[str], object],
                 progress: StageProgress | None, should_cancel: Callable[[], bool] | None
                 ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
-    """Each (shown name, clip name, style, read) read and analysed in turn, between cancel checks: the clips, and a
+    """Each (shown name, clip name, hints, read) read and analysed in turn, between cancel checks: the clips, and a
     "left out ..." line (also reported) for each that could not be read."""
     clips, notes = [], []
-    for i, (shown, name, style, read) in enumerate(items):
+    for i, (shown, name, hint, read) in enumerate(items):
         if should_cancel is not None and should_cancel():
             raise GenerationCancelled
         if progress is not None:
@@ -226,5 +269,5 @@ def _read_clips(items: Sequence[tuple[str, str, str, Callable[[], Motion]]], rep
             notes.append(f"left out {first_line(e)}")
             report(notes[-1])
             continue
-        clips.append((name, style, motion, analyze_clip(motion, style)))
+        clips.append((name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)))
     return clips, notes

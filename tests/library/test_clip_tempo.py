@@ -1,0 +1,109 @@
+"""A clip's tempo and meter read from its motion alone, and a figure danced at its captured speed whatever the song's
+tempo: made-up stepping figures at known tempi and meters, a song at twice a clip's tempo, and the manifest's
+`bpm` and `meter`, which override what the motion says."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_library import song
+
+from dancenet_core.bvh import write_bvh
+from dancenet_core.cli import main
+from dancenet_core.evaluation.metrics import mean_joint_speed
+from dancenet_core.library.analysis import analyze_clip
+from dancenet_core.library.build import build_library
+from dancenet_core.library.choreography import WARP_RANGE, choreograph
+from dancenet_core.library.store import MotionLibrary
+from dancenet_core.motion import Motion
+from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX
+
+FPS = 25.0
+
+
+def stepping(seconds: float, bpm: float, meter: int, seed: int = 0) -> Motion:
+    """A step on every beat (the legs swing a full cycle in two beats, so the body's speed dips at each beat), the
+    first of each bar the longest, and a figure of the arms and the body's rise and fall that takes one bar of
+    `meter` beats: the pose comes back every bar (the legs every two beats), as a dancer's does."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(seconds * FPS))) / FPS
+    beat = t * bpm / 60.0
+    bar = 2 * np.pi * beat / meter
+    legs = np.sin(np.pi * beat) * (1.0 + 0.3 * np.cos(bar))
+    rot = np.zeros((len(t), DEFAULT_SKELETON.num_joints, 3))
+    rot[:, JOINT_INDEX["left_hip"], 0] = 0.5 * legs
+    rot[:, JOINT_INDEX["right_hip"], 0] = -0.5 * legs
+    rot[:, JOINT_INDEX["left_knee"], 0] = 0.3 * (1 + np.abs(legs))
+    rot[:, JOINT_INDEX["right_knee"], 0] = 0.3 * (1 + np.abs(legs))
+    rot[:, JOINT_INDEX["left_shoulder"], 2] = -1.0 + 0.5 * np.sin(bar)
+    rot[:, JOINT_INDEX["right_shoulder"], 2] = 1.0 + 0.5 * np.cos(bar)
+    rot[:, JOINT_INDEX["left_elbow"], 1] = 0.6 * np.sin(bar + 1.0)
+    rot[:, JOINT_INDEX["spine1"], 1] = 0.3 * np.sin(bar)
+    rot += 0.01 * rng.standard_normal(rot.shape)
+    step = 0.35 * bpm / 60.0  # 35 cm a beat
+    root = np.stack([0.05 * np.sin(np.pi * beat), 0.9 - 0.04 * np.cos(bar), step * t], axis=1)
+    return Motion(rot, root, FPS)
+
+
+def same_tempo(read: float, bpm: float) -> bool:
+    """Within 8% of `bpm`, its half or its double: a reading the plan's 2:1 and 1:2 figures dance at speed."""
+    return min(abs(np.log(read / bpm * k)) for k in (0.5, 1.0, 2.0)) <= np.log(1.08)
+
+
+def test_stepping_figures_come_back_with_their_meter_and_tempo() -> None:
+    """With the style's meter (a folder named waltz, rumba...) every figure's tempo is read within 8% of an octave
+    of its own; from the motion alone, the meter of five of the six: a 3/4 figure whose pose comes back only every
+    two bars (six beats) may read as 4/4 at two thirds of its tempo (the same six beats), which the steps, one a beat,
+    tell apart only in part."""
+    right = 0
+    for bpm in (60, 90, 120):
+        for meter in (3, 4):
+            clip = stepping(40, bpm, meter)
+            told = analyze_clip(clip, style="waltz" if meter == 3 else "rumba")
+            assert told.meter == meter and same_tempo(told.tempo_bpm, bpm), (bpm, meter, told.tempo_bpm)
+            free = analyze_clip(clip)
+            assert free.source == "tempo: motion, meter: motion" and 0.0 <= free.confidence <= 1.0
+            right += free.meter == meter and same_tempo(free.tempo_bpm, bpm)
+    assert right >= 5
+
+
+def test_a_styles_meter_is_taken_and_said() -> None:
+    a = analyze_clip(stepping(40, 90, 4), style="Waltz")
+    assert a.meter == 3 and a.source == "tempo: motion, meter: style (Waltz)"
+
+
+def test_a_song_at_twice_a_clips_tempo_dances_it_at_its_own_speed() -> None:
+    clip = stepping(60, 60, 4)
+    library = MotionLibrary.from_clips([("slow", "", clip, analyze_clip(clip))])
+    dance = choreograph(library, song(40, 120), seed=0)[0]
+    assert dance.report.max_warp <= WARP_RANGE + 1e-6
+    played = {f["ratio"] for f in dance.report.figures}
+    assert played <= {0.5, 1.0} and same_tempo(library.tempo_bpm[0] / min(played), 120)
+    own = mean_joint_speed(clip.positions()[:, :BODY_JOINTS], FPS)
+    danced = mean_joint_speed(dance.motion.positions()[:, :BODY_JOINTS], FPS)
+    assert danced / own == pytest.approx(1.0, abs=WARP_RANGE)  # played two-for-one, it would be 2x
+
+
+def test_the_manifest_gives_the_tempo_and_meter(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                capsys: pytest.CaptureFixture) -> None:
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    write_bvh(folder / "a.bvh", stepping(30, 90, 4))
+    write_bvh(folder / "b.bvh", stepping(30, 120, 4, seed=1))
+    (folder / "manifest.csv").write_text("file,style,bpm,meter\na.bvh,rumba,100,3\nb.bvh,,,\n")
+    assert main(["library", "build", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "tempo: manifest, meter: manifest" in out and "tempo: motion, meter: motion" in out
+    library, _ = build_library(folder)
+    a, b = library.names.index("a.bvh"), library.names.index("b.bvh")
+    assert library.meter[a] == 3 and library.tempo_bpm[a] == pytest.approx(100, rel=0.05)
+    assert library.styles[a] == "rumba" and library.source[b] == "tempo: motion, meter: motion"
+    assert same_tempo(library.tempo_bpm[b], 120)
+
+    (folder / "manifest.csv").write_text("file,bpm\na.bvh,fast\n")
+    assert main(["library", "build", str(folder)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "line 2: bpm 'fast' is not beats per minute" in err and len(err.splitlines()) == 1
