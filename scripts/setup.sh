@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-time setup: Debian packages, a Python 3.11 venv with the pinned stack (constraints.txt), and the project
-# itself with its train, blender and dev extras.
+# itself with its train, blender, cluster (Ray) and dev extras.
 # A second run with nothing to do only compares a stamp and exits (seconds).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -46,7 +46,7 @@ fi
 echo "setup: installing the pinned stack"
 # pyrender pins an old PyOpenGL; we use PyOpenGL 3.1.10, so pyrender goes in without its dependencies and
 # what it imports is listed here.
-"${PIP[@]}" -e ".[train,blender,dev]" trimesh PyOpenGL six networkx Pillow imageio pyglet freetype-py 2>&1 \
+"${PIP[@]}" -e ".[train,blender,cluster,dev]" trimesh PyOpenGL six networkx Pillow imageio pyglet freetype-py 2>&1 \
     | grep -v "is ignored: it is neither" || true
 "${PIP[@]}" --no-deps pyrender==0.1.45 2>&1 | grep -v "is ignored: it is neither" || true
 
