@@ -106,21 +106,9 @@ def hangup_as_a_terminal_sends_it() -> None:
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
-ARRANGED_SONGS = ("DANCE_W_1", "DANCE_W_2", "DANCE_W_4")  # three waltzes of the training split
-
 
 def arranged_training_song(path: Path, form: str = "ABACAB") -> Path | None:
-    """A song in the sections `form` names, A, B and C each the 8 bars after the 4th downbeat of one of three
-    training waltzes, cut on their downbeats (a song whose form is known); None without the data."""
-    from dancenet_core.music.features import analyze_music
+    """`evaluation.form.arranged_song` from the data the tests read: a song whose form is known, or None."""
+    from dancenet_core.evaluation.form import arranged_song
 
-    folder = data_root() / "dance_with_melody"
-    if not all((folder / f"{s}.ogg").is_file() for s in ARRANGED_SONGS):
-        return None
-    parts, rate = {}, MADMOM_SAMPLE_RATE
-    for letter, name in zip("ABC", ARRANGED_SONGS, strict=True):
-        down = analyze_music(folder / f"{name}.ogg").downbeat_times
-        audio, rate = sf.read(str(folder / f"{name}.ogg"), dtype="float32")
-        parts[letter] = audio[int(down[4] * rate):int(down[12] * rate)]
-    sf.write(str(path), np.concatenate([parts[c] for c in form]), rate)
-    return path
+    return arranged_song(data_root(), path, form)

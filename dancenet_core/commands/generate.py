@@ -35,6 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--at", type=float, default=None, metavar="SECONDS",
                    help="with --continue: seconds into the kept dance where the new dancing starts")
     p.add_argument("--render", action="store_true", help="also render a preview video with the music")
+    p.add_argument("--form-plot", action="store_true",
+                   help="also draw the song's form beside the dance's (<song>_form.png: bar against bar, music and "
+                        "dance, the sections marked)")
     p.add_argument("--overwrite", action="store_true", help="replace outputs already in the folder")
     p.set_defaults(handler=run)
 
@@ -57,7 +60,9 @@ def names(stem: str, takes: int) -> list[str]:
 def outputs(args: argparse.Namespace, stem: str) -> list[Path]:
     """Every file this run will write, so none is replaced unless the user asked."""
     suffixes = (".bvh", ".npz", ".mp4") if args.render else (".bvh", ".npz")
-    return [args.out / f"{n}{s}" for n in names(stem, args.takes) for s in suffixes] + [args.out / f"{stem}.json"]
+    plot = [args.out / f"{stem}_form.png"] if getattr(args, "form_plot", False) else []
+    return [args.out / f"{n}{s}" for n in names(stem, args.takes) for s in suffixes] + plot + [
+        args.out / f"{stem}.json"]
 
 
 def _request(args: argparse.Namespace) -> DanceRequest:
@@ -129,6 +134,18 @@ def dance_into(args: argparse.Namespace, request: DanceRequest, stem: str, progr
     return result, summary
 
 
+def _form_plot(path: Path, request: DanceRequest, result: GenerationResult) -> None:
+    """The song's form beside the first take's (`evaluation.form.form_figure`)."""
+    from ..evaluation.form import form_figure  # matplotlib: only for this figure
+    from ..music.features import analyze_music
+    from ..representation import heading_frames
+
+    motion = result.motions[0]
+    labels = " ".join(s.name for s in result.form.sections)
+    form_figure(path, analyze_music(request.song), motion.positions(), heading_frames(motion), motion.fps,
+                result.form, result.start_s, f"{Path(request.song).name}: {labels} (returns: {request.returns})")
+
+
 def _copied(details: dict) -> str:
     """A library take's copied-run figures (`choreography.Report.summary`), so a user knows how much of the dance
     is one clip played straight through."""
@@ -155,6 +172,9 @@ def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: G
             render_motion(motion, temp[args.out / f"{name}.mp4"], audio=request.song, audio_start=result.start_s)
             files.append(f"{name}.mp4")
         result.timings["render_s"] = time.perf_counter() - t
+    if getattr(args, "form_plot", False):
+        _form_plot(temp[args.out / f"{stem}_form.png"], request, result)
+        files.append(f"{stem}_form.png")
     result.timings["total_s"] = time.perf_counter() - t0
     summary = {
         "song": str(args.song),

@@ -167,3 +167,21 @@ def test_a_section_with_settings_of_its_own_and_a_section_danced_again_with_the_
                            b.rotations[int(c1.start_s * fps) + 10:int(c1.end_s * fps)], atol=0.05)
     with pytest.raises(DanceNetError, match="has no section 'Z9'; its sections are A1, B1"):
         generate_dance(DanceRequest(arranged_song, sections=(SectionOverride("Z9", energy="calm"),)))
+
+
+def test_the_command_line_reads_the_form_and_draws_it(arranged_song, tmp_path, capsys):
+    import json
+
+    from dancenet_core.cli import main
+
+    assert main(["analyze", str(arranged_song), "--json", str(tmp_path / "a.json")]) == 0
+    assert "form:      A1 0.0s B1 " in capsys.readouterr().out
+    form = json.loads((tmp_path / "a.json").read_text())["form"]
+    assert form["labels"] == "ABACAB" and [s["bars"] for s in form["sections"]] == [8] * 6
+    assert main(["generate", str(arranged_song), "-o", str(tmp_path / "out"), "--form-plot", "--returns",
+                 "mirror", "--section", "C1:energy=calm"]) == 0
+    summary = json.loads((tmp_path / "out" / "abacab.json").read_text())
+    assert (summary["returns"], summary["sections"], summary["form"]["labels"]) == ("mirror", ["C1:energy=calm"],
+                                                                                    "ABACAB")
+    png = (tmp_path / "out" / "abacab_form.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and "abacab_form.png" in summary["files"]
