@@ -201,6 +201,13 @@ def prime_rmsprop(opt: torch.optim.RMSprop, model: torch.nn.Module,
         opt.state[p] = {"step": torch.zeros((), dtype=torch.float32), "square_avg": acc}
 
 
+def _log(out: Path, record: dict) -> None:
+    """Append a line to the run's log, opened and closed each time: the log of a run that stops with an error
+    is never left open, and a reader always sees whole lines."""
+    with open(out / "log.jsonl", "a") as log:
+        log.write(json.dumps(record) + "\n")
+
+
 def _ddp() -> tuple[int, int]:
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world > 1 and not torch.distributed.is_initialized():
@@ -293,6 +300,8 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         step, elapsed = state["step"], state["elapsed"]
         rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
+        if device.type == "cuda" and state.get("cuda_rng") is not None:  # the device's windows and draws
+            torch.cuda.set_rng_state(state["cuda_rng"], device)
         if rank == 0:
             print(f"resumed at step {step} ({elapsed / 60:.1f} min)")
 
@@ -330,7 +339,6 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
             parts["travel"] = float(travel.detach())
         return loss, parts
 
-    log = open(out / "log.jsonl", "a") if rank == 0 else None  # noqa: SIM115 (open for the whole run)
     model.train()
     if init and step == 0:
         prime_rmsprop(opt, model, batch_loss)
@@ -355,8 +363,7 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
                    "loss": loss.item(), **parts}
             if step % (args.log_every * 5) == 0 or step == 1:
                 rec |= held_out_loss()
-            log.write(json.dumps(rec) + "\n")
-            log.flush()
+            _log(out, rec)
         if rank == 0 and args.snapshot_every and step % args.snapshot_every == 0:
             # Kept weights along the way: the learning curve (held-out FID_k against time) is measured on them.
             # Each carries its held-out loss, so a snapshot chosen for shipping has its card's figures.
@@ -366,8 +373,8 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
             snapshot.save(out / "snapshots" / f"step{step:06d}.pt")
         if rank == 0 and step % args.checkpoint_every == 0:
             save_weights({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(), "step": step,
-                          "elapsed": elapsed, "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()},
-                         ckpt)
+                          "elapsed": elapsed, "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+                          "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None}, ckpt)
             t_last = time.time()
     if rank == 0:
         final = bundle()
@@ -375,7 +382,5 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
         final.save(out / "dancenet.pt")
         if isinstance(final.model, DanceNet):  # what generation runs, without torch
             bundle_to_runtime(final).save(out / "dancenet.npz")
-        log.write(json.dumps({"step": step, "minutes": round(elapsed / 60, 2), "done": True,
-                              **held_out_loss()}) + "\n")
-        log.close()
+        _log(out, {"step": step, "minutes": round(elapsed / 60, 2), "done": True, **held_out_loss()})
     return out / "dancenet.pt"

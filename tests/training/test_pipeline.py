@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import soundfile as sf
+import torch
 
 from dancenet_core.cli import main as cli_main
 from dancenet_core.data.build import PairedSequence
@@ -63,6 +65,47 @@ def test_training_resumes_from_its_plain_checkpoint(tmp_path: Path, capsys: pyte
     assert "resumed at step 2" in capsys.readouterr().out
     steps = [json.loads(line)["step"] for line in (tmp_path / "log.jsonl").read_text().splitlines()]
     assert steps[-1] == 4
+
+
+def test_a_resumed_run_is_the_same_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stopped right after its checkpoint and resumed, a run ends with the weights an uninterrupted run has, on
+    this machine's device (on a GPU the windows and own draws come from the CUDA generator, which the checkpoint
+    carries too)."""
+    from dancenet_core.training import dancenet
+
+    settings = TrainSettings(minutes=5, steps=4, batch=2, window=100, log_every=1, checkpoint_every=2,
+                             own_inputs=0.3)
+    whole = train(replace(settings, out=tmp_path / "whole"), *_tiny_dataset())
+
+    def saved_then_stopped(obj: dict, path: Path) -> None:
+        dancenet_save(obj, path)
+        raise KeyboardInterrupt
+
+    dancenet_save = dancenet.save_weights
+    with monkeypatch.context() as patched:
+        patched.setattr(dancenet, "save_weights", saved_then_stopped)
+        with pytest.raises(KeyboardInterrupt):
+            train(replace(settings, out=tmp_path / "parts"), *_tiny_dataset())
+    parts = train(replace(settings, out=tmp_path / "parts", resume=True), *_tiny_dataset())
+    a, b = DanceNetBundle.load(whole).model.state_dict(), DanceNetBundle.load(parts).model.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
+def test_the_training_log_is_closed_when_training_stops(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run that stops with an error (here its checkpoint cannot be written) leaves its log closed, also while
+    its caller keeps the error (and with it the run's frames) to report it."""
+    from dancenet_core.training import dancenet
+
+    def full_disk(*_args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(dancenet, "save_weights", full_disk)
+    settings = TrainSettings(out=tmp_path, minutes=5, steps=4, batch=2, window=100, log_every=1, checkpoint_every=2)
+    with pytest.raises(OSError, match="No space left") as kept:
+        train(settings, *_tiny_dataset())
+    log = (tmp_path / "log.jsonl").resolve()
+    assert [fd for fd in Path("/proc/self/fd").iterdir() if Path(os.path.realpath(fd)) == log] == [], kept.value
 
 
 @pytest.fixture(scope="module")
