@@ -46,7 +46,7 @@ from ..representation import decode
 from ..skeleton import BODY_JOINTS
 from . import drift
 from .dance_features import geometric_features, kinetic_features, smpl24_positions
-from .library_row import library_row
+from .library_row import clip_analysis, library_note, library_row, music_library, users_library
 from .metrics import (
     body_relative_segments,
     diversity,
@@ -300,27 +300,23 @@ def compare(args: argparse.Namespace) -> int:
                               test_pairs, beats, args.takes, temperature, footfix=True))
     if args.library or args.library_only:
         train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
-        row = DanceSet("library", "Motion library engine (training dances)")
-        row.dances, row.styles, row.beats_s, row.info = library_row(train_pairs, test_pairs, data, shipped.skeleton,
-                                                                    fps, args.takes)
-        rows.append(row)
+        for name, label, library in (
+                ("library", "Motion library engine (users' path: training dances as BVH, no music)",
+                 users_library(train_pairs, shipped.skeleton, fps)),
+                ("library_music", "Motion library engine, clips cut on their music's beats (upper bound)",
+                 music_library(train_pairs, data, shipped.skeleton, fps))):
+            row = DanceSet(name, label)
+            row.dances, row.styles, row.beats_s, row.info = library_row(library, test_pairs, data, fps, args.takes)
+            rows.append(row)
+            print(f"  {name}: {len(row.dances)} dances", flush=True)
+        rows[-2].info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
+                                                       set(split["test"]))
     table = measure(rows, ref_feats, fps, style_net)
 
     args.out.mkdir(parents=True, exist_ok=True)
     seconds = time.perf_counter() - t0
     md = markdown(table, seconds, args.steps, args.takes, len(ref_feats["hit"]))
-    if "library" in table:
-        lib = table["library"]
-        md += (f"\nMotion library engine: a library of {lib['library_min']} min (the training dances); share of "
-               f"frames from runs of one clip longer than {lib['long_run_bars']} bars {lib['long_run_share']:.3f} "
-               f"(mean per dance), longest run {lib['longest_run_s']:.1f} s; largest joint step a cut made "
-               f"{lib['max_cut_step']:.2f}x the capture's 99th percentile or its source clip's own step there "
-               f"({lib['cuts_over']} of {lib['cuts']} cuts over 1x; counting the clips' own steps too "
-               f"{lib['max_window_step_over_p99']:.2f}x; the capture's own largest: "
-               f"{lib['capture_max_step_over_p99']:.2f}x), frames blended at cuts with a joint over it "
-               f"{lib['transition_frames_over_p99']:.1%} (the capture's own frames: "
-               f"{lib['capture_frames_over_p99']:.1%}); largest time-warp "
-               f"{lib['max_warp']:.1%}. Per dance in comparison.json.\n")
+    md += library_note(table)
     write_text(args.out / "comparison.md", md)
     write_text(args.out / "comparison.json", json.dumps(
         {"seconds": seconds, "steps": args.steps, "takes": args.takes, "temperature": temperature,

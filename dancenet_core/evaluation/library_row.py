@@ -1,25 +1,37 @@
-"""The motion-library engine's row of `dancenet evaluate --library`: the training split's real dances as the library
-(cut on the beats of the music they were danced to), dancing to the test-split songs' spans.
+"""The motion-library engine's rows of `dancenet evaluate --library`, dancing to the test-split songs' spans:
 
-Besides the table's columns it measures the engine's copying and its cuts: the copied runs (share of frames from
-runs of one clip longer than `LONG_RUN_BARS` bars, longest run) per dance, and at every cut the largest step of any
-joint over the frames the cut blends (`transitions.cut_window`), against that joint's 99th percentile of
-frame-to-frame motion in the capture: the step the cut made (`transitions.cut_steps`: where the source clip itself
-steps further than the percentile, over its own step) and, raw, the largest step in the window whatever made it.
-The capture itself passes that percentile in about 7% of its frames (some joint of 22), up to about 2.2x, so the
-row also gives the share of the frames the cuts blend with a joint over it, next to the capture's own share and
-largest step.
+- the users' path: the training split's real dances written as BVH files of our skeleton, one folder per style and
+  no music, built as `dancenet library build` builds a user's folder (each clip's beats, tempo and bars read from
+  its motion, its style's meter assumed);
+- the upper bound: the same dances cut on the beats and downbeats of the music they were danced to, which no
+  user's clip has.
+
+Besides the table's columns it measures what the engine is held to: the copied runs (share of frames from runs of
+one clip longer than `LONG_RUN_BARS` bars, longest run) per dance, the largest real-time warp played (how much
+faster or slower than captured any beat plays), and at every cut the largest step of any joint over the frames the
+cut blends (`transitions.cut_window`), against that joint's 99th percentile of frame-to-frame motion in the
+capture: the step the cut made (`transitions.cut_steps`: where the source clip itself steps further than the
+percentile, over its own step) and, raw, the largest step in the window whatever made it. The capture itself passes
+that percentile in about 7% of its frames (some joint of 22), up to about 2.2x, so the row also gives the share of
+the frames the cuts blend with a joint over it, next to the capture's own share and largest step.
+
+`clip_analysis` reads every Dance with Melody dance's tempo and meter from its motion (with and without its style)
+and scores them against its song's beats: the meter right, the tempo within 8% of the song's or of its half or
+double (an octave off the plan dances at speed; anything else it cannot lay on the beats).
 """
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..bvh import write_bvh
 from ..data.build import PairedSequence
 from ..data.dance_with_melody import read_manifest
 from ..library.analysis import analyze_clip
+from ..library.build import build_library
 from ..library.choreography import LONG_RUN_BARS, choreograph
 from ..library.store import MotionLibrary
 from ..library.transitions import cut_window
@@ -27,9 +39,12 @@ from ..music.features import analyze_music
 from ..representation import decode
 from ..skeleton import BODY_JOINTS, Skeleton
 
+TEMPO_TOLERANCE = 0.08
 
-def training_library(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton, fps: float) -> MotionLibrary:
-    """The training dances (as the table's real rows decode them) cut on their songs' beats and downbeats."""
+
+def music_library(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton, fps: float) -> MotionLibrary:
+    """The training dances (as the table's real rows decode them) cut on their songs' beats and downbeats: the
+    engine's upper bound."""
     seqs = {s.seq: s for s in read_manifest(data_dir)}
     clips = []
     for p in pairs:
@@ -41,11 +56,21 @@ def training_library(pairs: list[PairedSequence], data_dir: Path, skeleton: Skel
     return MotionLibrary.from_clips(clips)
 
 
-def library_row(train: list[PairedSequence], test: list[PairedSequence], data_dir: Path, skeleton: Skeleton,
-                fps: float, takes: int) -> tuple[list, list[str], list[np.ndarray], dict]:
-    """Dances (take k with seed k) to every test sequence's song span, their styles and beats (dance time), and the
-    engine's own figures: per dance and over all."""
-    library = training_library(train, data_dir, skeleton, fps)
+def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -> MotionLibrary:
+    """The training dances as a user's folder holds clips: BVH files, a folder per style, no music; built by
+    `library.build.build_library` (cached by the folder's content, as a user's)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for p in pairs:
+            (Path(tmp) / p.style).mkdir(exist_ok=True)
+            write_bvh(Path(tmp) / p.style / f"{p.seq}.bvh", decode(p.motion, fps, skeleton))
+        library, _ = build_library(tmp, report=lambda _line: None)
+    return library
+
+
+def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int
+                ) -> tuple[list, list[str], list[np.ndarray], dict]:
+    """Dances from `library` (take k with seed k) to every test sequence's song span, their styles and beats (dance
+    time), and the engine's own figures: per dance and over all."""
     p99 = library.step_p99
     own = np.delete(library.step_ratios, library.clip_starts[:-1])
     seqs = {s.seq: s for s in read_manifest(data_dir)}
@@ -65,8 +90,11 @@ def library_row(train: list[PairedSequence], test: list[PairedSequence], data_di
             dances.append(d.motion)
             styles.append(p.style)
             beats.append(music.beat_times - start)
+            figures = d.report.figures
             per_dance.append({"seq": p.seq, "take": take, **d.report.summary(), "window_step_over_p99": ratio,
-                              "cuts_over": int(sum(r > 1.0 for r in d.report.cut_steps))})
+                              "cuts_over": int(sum(r > 1.0 for r in d.report.cut_steps)),
+                              "mean_figure_s": float(np.mean([f["song_s"][1] - f["song_s"][0] for f in figures])),
+                              "ratios": sorted({f["ratio"] for f in figures})})
     blended = np.concatenate(blended)
     info = {"library_min": round(library.duration_s / 60, 1), "long_run_bars": LONG_RUN_BARS,
             "long_run_share": float(np.mean([r["long_run_share"] for r in per_dance])),
@@ -76,5 +104,76 @@ def library_row(train: list[PairedSequence], test: list[PairedSequence], data_di
             "max_window_step_over_p99": float(max(r["window_step_over_p99"] for r in per_dance)),
             "transition_frames_over_p99": float(np.mean(blended > 1.0)) if len(blended) else 0.0,
             "capture_frames_over_p99": float(np.mean(own > 1.0)), "capture_max_step_over_p99": float(own.max()),
-            "max_warp": float(max(r["max_warp"] for r in per_dance)), "per_dance": per_dance}
+            "max_warp": float(max(r["max_warp"] for r in per_dance)),
+            "mean_figure_s": float(np.mean([r["mean_figure_s"] for r in per_dance])),
+            "clip_tempo_bpm": [round(float(t), 1) for t in library.tempo_bpm],
+            "clip_meter": library.meter.tolist(), "per_dance": per_dance}
     return dances, styles, beats, info
+
+
+def same_tempo(read: float, song: float) -> bool:
+    """Within TEMPO_TOLERANCE of the song's tempo, its half or its double."""
+    return min(abs(np.log(read / song * k)) for k in (0.5, 1.0, 2.0)) <= np.log1p(TEMPO_TOLERANCE)
+
+
+def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton, fps: float,
+                  test: set[str]) -> dict:
+    """Every dance's tempo and meter read from its motion, without and with its style's meter, against its song's
+    beats over the part danced (tempo: the median beat interval; meter: the median number of beats between
+    downbeats): shares right over all and over the `test` split, and per clip."""
+    seqs = {s.seq: s for s in read_manifest(data_dir)}
+    clips = []
+    for p in pairs:
+        motion = decode(p.motion, fps, skeleton)
+        music = analyze_music(seqs[p.seq].audio)
+        offset = seqs[p.seq].music_offset_s
+        beats = music.beat_times - offset
+        span = (beats >= 0) & (beats <= motion.duration)
+        song_bpm = 60.0 / float(np.median(np.diff(beats[span])))
+        downs = np.flatnonzero(np.isin(beats[span], music.downbeat_times - offset))
+        song_meter = int(np.median(np.diff(downs))) if len(downs) > 1 else 0
+        row = {"seq": p.seq, "style": p.style, "song_bpm": round(song_bpm, 1), "song_meter": song_meter}
+        for hint, style in (("motion", ""), ("style", p.style)):
+            a = analyze_clip(motion, style)
+            row[hint] = {"bpm": round(a.tempo_bpm, 1), "meter": a.meter, "confidence": round(a.confidence, 3),
+                         "meter_right": a.meter == song_meter, "tempo_right": same_tempo(a.tempo_bpm, song_bpm)}
+        clips.append(row)
+
+    def shares(rows: list[dict]) -> dict:
+        return {hint: {"meter_right": float(np.mean([r[hint]["meter_right"] for r in rows])),
+                       "tempo_right": float(np.mean([r[hint]["tempo_right"] for r in rows])),
+                       "both_right": float(np.mean([r[hint]["meter_right"] and r[hint]["tempo_right"]
+                                                    for r in rows]))} for hint in ("motion", "style")}
+
+    return {"clips": len(clips), "all": shares(clips), "test_clips": sum(r["seq"] in test for r in clips),
+            "test": shares([r for r in clips if r["seq"] in test]), "per_clip": clips}
+
+
+def library_note(table: dict[str, dict]) -> str:
+    """The library rows' own figures under the table (markdown)."""
+    out = ""
+    for name, what in (("library", "users' path: the training dances as BVH clips without music"),
+                       ("library_music", "upper bound: the same dances cut on their music's beats")):
+        if name not in table:
+            continue
+        lib = table[name]
+        out += (f"\nMotion library engine ({what}): a library of {lib['library_min']} min; share of frames from runs "
+                f"of one clip longer than {lib['long_run_bars']} bars {lib['long_run_share']:.3f} (mean per dance), "
+                f"longest run {lib['longest_run_s']:.1f} s; mean figure {lib['mean_figure_s']:.2f} s; largest joint "
+                f"step a cut made {lib['max_cut_step']:.2f}x the capture's 99th percentile or its source clip's own "
+                f"step there ({lib['cuts_over']} of {lib['cuts']} cuts over 1x; counting the clips' own steps too "
+                f"{lib['max_window_step_over_p99']:.2f}x; the capture's own largest: "
+                f"{lib['capture_max_step_over_p99']:.2f}x), frames blended at cuts with a joint over it "
+                f"{lib['transition_frames_over_p99']:.1%} (the capture's own frames: "
+                f"{lib['capture_frames_over_p99']:.1%}); largest real-time warp {lib['max_warp']:.1%}.\n")
+    analysis = table.get("library", {}).get("clip_analysis")
+    if analysis:
+        a, t = analysis["all"], analysis["test"]
+        out += (f"\nClip analysis from the motion alone ({analysis['clips']} Dance with Melody dances against their "
+                f"songs' beats; test split's {analysis['test_clips']} in brackets): meter right "
+                f"{a['motion']['meter_right']:.0%} ({t['motion']['meter_right']:.0%}), tempo within "
+                f"{TEMPO_TOLERANCE:.0%} of the song's or its half or double {a['motion']['tempo_right']:.0%} "
+                f"({t['motion']['tempo_right']:.0%}); with the style's meter: meter {a['style']['meter_right']:.0%} "
+                f"({t['style']['meter_right']:.0%}), tempo {a['style']['tempo_right']:.0%} "
+                f"({t['style']['tempo_right']:.0%}). Per clip and per dance in comparison.json.\n")
+    return out

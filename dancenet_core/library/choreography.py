@@ -7,8 +7,9 @@
    each song beat (1, 2, 1/2, 3/2 or 2/3: `RATIOS`), so that a clip danced at half or twice the song's tempo, or
    whose tempo was read an octave off, still plays at its dancers' speed; a bar of n beats takes the library's
    ratio x n beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of
-   the mean onset strength), the time-warp in real time (how much faster or slower than captured each beat plays:
-   beyond +-15% only when nothing fits, at a steep cost) and seeded noise
+   the mean onset strength), the time-warp in real time (how much faster or slower than captured the figure plays,
+   at one speed from the bar's first beat to the next bar's: beyond +-15% only when nothing fits, at a steep cost)
+   and seeded noise
    (different seeds, different dances); each join's: the distance between the pose, velocity and foot contact
    where one figure ends and the next starts (0 where the next figure is the clip's own continuation), and, at a
    cut, a steep cost where some joint of the new figure, as fast as the warp plays it, steps further in the
@@ -32,6 +33,7 @@ from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from .analysis import POSE_DIM, frame_features
+from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
 from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
 
@@ -60,13 +62,14 @@ class Settings:
 
     energy: float = 2.0
     tempo: float = 1.0
-    out_of_range: float = 50.0
+    out_of_range: float = 500.0
     noise: float = 0.25
     pose: float = 1.0
     velocity: float = 0.15
     contact: float = 0.3
     cut: float = 0.2  # every cut costs this much more than carrying on with the clip
-    calm: float = 50.0  # per unit of a cut's step over the limit (as steep as a warp out of range)
+    calm: float = 50.0  # per unit of a cut's step over the limit (steep: only where no calmer cut fits)
+    match: float = 2.0  # per unit of the learned match's cosine below 1 (when the plan is given one)
 
 
 DEFAULT_SETTINGS = Settings()
@@ -232,7 +235,7 @@ def _speed_limit_excess(log_speed: np.ndarray) -> np.ndarray:
 
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
-         previous: np.ndarray | None = None) -> list[tuple[int, float]]:
+         previous: np.ndarray | None = None, match: FigureMatch | None = None) -> list[tuple[int, float]]:
     """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
@@ -279,21 +282,22 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
         return cache[n_prev]
 
     def unary(b: int) -> tuple[np.ndarray, np.ndarray]:
-        """[F] each figure's cost on bar b, and how much faster than captured it plays the bar's first beat."""
+        """[F] each figure's cost on bar b, and how much faster than captured it plays (one speed over the bar)."""
         a, n = grid.bars[b]
-        song_dt = np.diff(grid.beats[a : a + n + 1])
-        position = starts[:, None] + ratios[:, None] * np.arange(n + 1)[None, :]
-        last = np.minimum(np.ceil(position[:, -1] - 1e-9).astype(np.int64), nb - 1)
-        fits = (position[:, -1] <= nb - 1) & (library.beat_clip[last] == clip)
-        clip_dt = np.diff(beat_frames(library, position), axis=1) / library.fps
+        song_s = grid.beats[a + n] - grid.beats[a]
+        end = starts + ratios * n
+        last = np.minimum(np.ceil(end - 1e-9).astype(np.int64), nb - 1)
+        fits = (end <= nb - 1) & (library.beat_clip[last] == clip)
+        clip_s = (beat_frames(library, end) - library.beats[starts]) / library.fps
         with np.errstate(divide="ignore", invalid="ignore"):
-            log_speed = np.log(clip_dt / song_dt[None, :])
-        warp = np.abs(log_speed).max(axis=1)
-        fits &= np.isfinite(warp)
-        cost = (settings.energy * (music_rank[b] - fig_energy) ** 2 + settings.tempo * warp**2
-                + settings.out_of_range * _speed_limit_excess(log_speed).max(axis=1)
+            log_speed = np.log(clip_s / song_s)
+        fits &= np.isfinite(log_speed)
+        cost = (settings.energy * (music_rank[b] - fig_energy) ** 2 + settings.tempo * log_speed**2
+                + settings.out_of_range * _speed_limit_excess(log_speed)
                 + rng.normal(0.0, settings.noise, len(starts)))
-        return np.where(fits, cost, np.inf), np.exp(np.nan_to_num(log_speed[:, 0], nan=0.0, posinf=0.0))
+        if match is not None:
+            cost = cost + settings.match * (1.0 - match.fit(b, starts, ratios, n))
+        return np.where(fits, cost, np.inf), np.exp(np.nan_to_num(log_speed, nan=0.0, posinf=0.0, neginf=0.0))
 
     def calm(speed: np.ndarray) -> np.ndarray:
         """[F]: the cost of entering each figure by a cut, for its steps at the cut as fast as it plays them."""
@@ -331,7 +335,8 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
 
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
                 end_s: float | None = None, takes: int = 1, style: str | None = None,
-                settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None) -> list[LibraryDance]:
+                settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None,
+                match: MatchModel | None = None) -> list[LibraryDance]:
     """`takes` dances to the song's part from `start_s` to `end_s` (default: its end), cut from `library`; the same
     seed gives the same dances. With `kept` (a dance at the library's frame rate and skeleton, two frames or more,
     that ends at `start_s`) each dance goes on from its last pose: chosen and blended as after a cut."""
@@ -339,10 +344,12 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     grid = song_grid(analysis, start_s, end)
     rng = np.random.default_rng(seed)
     onset = analysis.features[:, ONSET_COL]
+    fit = None if match is None else FigureMatch(match, library, analysis.features,
+                                                 [grid.beats[a : a + n + 1] for a, n in grid.bars])
     previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous)
+        bars = plan(library, grid, onset, rng, style, settings, previous, fit)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))

@@ -50,7 +50,10 @@ HOLD_SMOOTH_FRAMES = 2.0
 class Figure:
     """A bar of the dance: `beats` song beats, at song times `times` ([beats + 1] seconds, one per beat and the next
     bar's first), danced by the library's beats from the library beat `start`, `ratio` of them per song beat (2: two
-    clip beats in each song beat; 0.5: one in two; between two beats of the clip, its frames in proportion)."""
+    clip beats in each song beat; 0.5: one in two; between two beats of the clip, its frames in proportion). The
+    figure's first and last clip beats fall on the bar's first beat and the next bar's; between them it plays at
+    one speed, so the dancer's own timing within the bar is kept (and a song's or a clip's unevenly tracked beats
+    do not hurry one beat and drag the next)."""
 
     start: int
     beats: int
@@ -64,7 +67,8 @@ class Figure:
 
     def frames(self, library: MotionLibrary) -> np.ndarray:
         """[beats + 1]: the library frames (sub-frame) played at `times`."""
-        return beat_frames(library, self.start + self.ratio * np.arange(self.beats + 1))
+        first, last = beat_frames(library, np.array([self.start, self.end], np.float64))
+        return first + (last - first) * (self.times - self.times[0]) / (self.times[-1] - self.times[0])
 
 
 def beat_frames(library: MotionLibrary, position: np.ndarray) -> np.ndarray:
