@@ -9,7 +9,9 @@ scenes and data blocks stay as they were, and so does the scene's frame. Main th
 An action of the file becomes a clip when its bone channels belong to an armature that Auto's bone map reads as a
 humanoid (DanceNet's own takes are not clips: they are dances made from the library, not capture). Its style is the
 action's custom property `dancenet_style` if set, else its name up to the first "_" ("salsa_basic" is salsa; a
-name without "_" has no style).
+name without "_" has no style). Its custom properties `dancenet_bpm` and `dancenet_meter`, where set, give its tempo
+and beats per bar, which the library then takes instead of reading them from the motion (as a folder's
+manifest.csv does).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ if TYPE_CHECKING:  # the library's build code is loaded when a library is built,
     from dancenet_core.library.build import ArmatureClip
 
 STYLE_PROP = "dancenet_style"
+BPM_PROP, METER_PROP = "dancenet_bpm", "dancenet_meter"
 _BONE_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]')
 
 
@@ -86,7 +89,7 @@ def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
 
 
 def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str], frames: range, name: str,
-            style: str, fps: float) -> ArmatureClip:
+            style: str, fps: float, bpm: float | None = None, meter: int | None = None) -> ArmatureClip:
     """The world matrices of `rig`'s bones for our `joints` (in `scene`) at each of `frames`, as Blender evaluates
     them."""
     from dancenet_core.library.build import ArmatureClip
@@ -105,7 +108,7 @@ def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str
         if t == 0:  # the rest pose where the object is as the clip starts
             rest = world @ rest
         pose[t] = world @ np.swapaxes(buf.reshape(-1, 4, 4)[index], 1, 2)  # Blender lays matrices out by column
-    return ArmatureClip(name, style, order, rest, pose, fps)
+    return ArmatureClip(name, style, order, rest, pose, fps, bpm, meter)
 
 
 def _frames(action: bpy.types.Action) -> range:
@@ -144,6 +147,8 @@ class FileAction:
     armature: str
     style: str
     joints: tuple[tuple[int, str], ...]  # our joint -> the armature's bone, by Auto's bone map
+    bpm: float | None = None  # the action's `dancenet_bpm` and `dancenet_meter`, where set
+    meter: int | None = None
 
     @property
     def name(self) -> str:
@@ -178,6 +183,21 @@ def style_of(action: bpy.types.Action) -> str:
     return action.name.split("_", 1)[0] if "_" in action.name else ""
 
 
+def tempo_of(action: bpy.types.Action) -> tuple[float | None, int | None]:
+    """The clip's tempo and beats per bar where the action's `dancenet_bpm` and `dancenet_meter` give them (else
+    None: read from the motion); a one-line DanceNetError for a value that is neither."""
+    from dancenet_core.library.build import MANIFEST_BPM, MANIFEST_METERS
+
+    bpm, meter = action.get(BPM_PROP), action.get(METER_PROP)
+    if bpm is not None and not (isinstance(bpm, int | float) and MANIFEST_BPM[0] <= bpm <= MANIFEST_BPM[1]):
+        raise DanceNetError(f"its {BPM_PROP} {bpm!r} is not beats per minute ({MANIFEST_BPM[0]:g}-"
+                            f"{MANIFEST_BPM[1]:g}); correct it or delete the property")
+    if meter is not None and not (isinstance(meter, int | float) and meter in MANIFEST_METERS):
+        raise DanceNetError(f"its {METER_PROP} {meter!r} is not beats per bar (2, 3, 4 or 6); correct it or delete "
+                            "the property")
+    return (None if bpm is None else float(bpm)), (None if meter is None else int(meter))
+
+
 def file_actions() -> tuple[list[FileAction], list[str]]:
     """The file's actions that animate a humanoid armature, and one line per action that animates bones but cannot
     be a clip (its armature is gone, or is no humanoid)."""
@@ -204,8 +224,13 @@ def file_actions() -> tuple[list[FileAction], list[str]]:
             if isinstance(joints, str):
                 notes.append(f"{action.name}: {joints}")
                 continue
+            try:
+                bpm, meter = tempo_of(action)
+            except DanceNetError as e:
+                notes.append(f"{action.name}: {e}")
+                continue
             found.append(FileAction(action.name, slot.identifier if slot is not None else None, rig.name,
-                                    style_of(action), tuple(sorted(joints.items()))))
+                                    style_of(action), tuple(sorted(joints.items())), bpm, meter))
     return found, notes
 
 
@@ -261,4 +286,5 @@ def sample_action(item: FileAction, fps: float) -> ArmatureClip:
         anim.action = action
         if item.slot is not None:
             anim.action_slot = next(s for s in action.slots if s.identifier == item.slot)
-        return _sample(copy, scene, dict(item.joints), _frames(action), item.action, item.style, fps)
+        return _sample(copy, scene, dict(item.joints), _frames(action), item.action, item.style, fps, item.bpm,
+                       item.meter)

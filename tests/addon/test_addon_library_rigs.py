@@ -276,3 +276,25 @@ def test_generate_asks_to_build_the_actions_library_first(scene, addon, real, ow
         generate(scene, real, engine="library")
     assert not built_path("none").is_file()
 
+
+
+def test_an_actions_tempo_and_meter_properties_are_taken(scene, addon, own_cache):
+    """An action's `dancenet_bpm` and `dancenet_meter` are the clip's tempo and meter in the library (as a folder's
+    manifest.csv columns); one that is no tempo leaves the action out in one line."""
+    scene.render.fps = FPS
+    rig, _motion, _scale = _keyed_rig(addon, "own", "rumba_told", seconds=12.0)
+    action = rig.animation_data.action
+    action["dancenet_bpm"], action["dancenet_meter"] = 100.0, 3
+    props = scene.dancenet
+    props.engine, props.library_source = "library", "ACTIONS"
+    assert bpy.ops.dancenet.build_library() == {"FINISHED"}
+    library = MotionLibrary.load(addon.library.chosen_library(props))
+    assert library.meter.tolist() == [3] and library.tempo_bpm.tolist() == [100.0]
+    assert library.source == ["tempo: manifest, meter: manifest"]
+
+    action["dancenet_meter"] = 5
+    with pytest.raises(RuntimeError) as report:
+        bpy.ops.dancenet.build_library()
+    text = str(report.value).strip()
+    assert text == ("Error: no action animates a humanoid armature in this file: rumba_told: its dancenet_meter 5 is "
+                    "not beats per bar (2, 3, 4 or 6); correct it or delete the property"), text
