@@ -143,8 +143,25 @@ def test_the_copied_run_report_adds_up(library: MotionLibrary) -> None:
     assert r.longest_run_bars > LONG_RUN_BARS and r.long_run_share > 0.8  # one clip, played straight through
     mixed = choreograph(library, song(60, 110), seed=0, settings=Settings(noise=2.0))[0].report
     assert mixed.long_run_share < r.long_run_share
-    assert 0.0 <= mixed.long_run_share <= 1.0 and mixed.longest_run_s <= 60.0
     assert len(mixed.figures) == len(song_grid(song(60, 110), 0.0, 60.0).bars)
+    for rep in (r, mixed):  # the figures listed add up to the runs reported
+        runs = _runs(rep.figures)
+        assert rep.long_run_share == pytest.approx(sum(s for b, s in runs if b > LONG_RUN_BARS) / 60.0, abs=1e-3)
+        longest = max(runs, key=lambda run: run[1])
+        assert (rep.longest_run_bars, rep.longest_run_s) == (longest[0], pytest.approx(longest[1], abs=1e-3))
+        assert 0.0 < rep.max_warp <= 0.15  # the engine's cap (choreography.WARP_RANGE)
+
+
+def _runs(figures: list[dict]) -> list[tuple[int, float]]:
+    """(figures, song seconds) of each run of one clip: a figure runs on where the one before it ended in the clip."""
+    runs: list[tuple[int, float]] = []
+    for k, f in enumerate(figures):
+        seconds = f["song_s"][1] - f["song_s"][0]
+        if k and f["clip"] == figures[k - 1]["clip"] and f["clip_s"][0] == figures[k - 1]["clip_s"][1]:
+            runs[-1] = (runs[-1][0] + 1, runs[-1][1] + seconds)
+        else:
+            runs.append((1, seconds))
+    return runs
 
 
 def test_the_dance_follows_the_musics_energy(library: MotionLibrary) -> None:
@@ -336,10 +353,16 @@ def test_generate_reports_the_copied_runs(tmp_path: Path, monkeypatch: pytest.Mo
     printed = capsys.readouterr().out
     details = json.loads((out / "song.json").read_text())["takes_details"]
     assert len(details) == 2
-    for d in details:
-        assert d["long_run_bars"] == LONG_RUN_BARS and 0.0 <= d["long_run_share"] <= 1.0
-        assert d["longest_run_bars"] >= 1 and 0.0 < d["longest_run_s"] <= 12.0 and 0.0 <= d["max_warp"] <= 0.3
-    assert "song_take2: " in printed and "of frames from runs of one clip longer than 4 bars" in printed
+    bar_s = 4 * 60 / 110
+    for k, d in enumerate(details, 1):  # what is recorded is what is printed, and the figures agree
+        assert d["long_run_bars"] == LONG_RUN_BARS
+        longest_share = d["longest_run_s"] / 12.0 if d["longest_run_bars"] > LONG_RUN_BARS else 0.0
+        assert longest_share <= d["long_run_share"] <= (1.0 if longest_share else 0.0)  # the longest run counts
+        assert d["longest_run_s"] == pytest.approx(d["longest_run_bars"] * bar_s, rel=0.06)  # bars of the song
+        assert 0.0 < d["max_warp"] <= 0.15  # the engine's cap (choreography.WARP_RANGE)
+        assert (f"song_take{k}: {d['long_run_share']:.0%} of frames from runs of one clip longer than 4 bars; "
+                f"longest run {d['longest_run_bars']} bars ({d['longest_run_s']:.1f} s); largest time-warp "
+                f"{d['max_warp']:.0%}") in printed
 
 
 def test_continue_from_here_keeps_the_kept_frames_and_joins_without_a_jump(tmp_path: Path,

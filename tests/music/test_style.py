@@ -219,7 +219,8 @@ def test_shipped_split_covers_the_data_and_model_styles() -> None:
 
 @needs_data
 def test_shipped_model_on_held_out_song() -> None:
-    """The first 40 s of the shortest held-out song: a valid style and probability from the shipped model."""
+    """The first 40 s of the shortest held-out song (a waltz): the shipped model names its style, surely, in every
+    window (0.997 here)."""
     split = json.loads(SPLIT_FILE.read_text())
     rows = {r.seq: r for r in read_manifest(DATA)}
     seq = min(split["test"], key=lambda s: rows[s].song_s)
@@ -227,8 +228,9 @@ def test_shipped_model_on_held_out_song() -> None:
     audio.samples = audio.samples[: 40 * audio.sample_rate]
     model = T.StyleModel.load()
     result = model.classify(analyze_audio(audio))
-    assert rows[seq].style in model.styles
-    assert result.style in model.styles
+    assert result.style == rows[seq].style
+    assert result.probabilities.max() > 0.9
+    assert result.window_styles() == [rows[seq].style] * 3
     assert result.probabilities.sum() == pytest.approx(1.0, abs=1e-5)
     assert len(result.window_starts_s) == 3  # 0, 5 and 10 s
 
