@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from scipy.spatial.distance import pdist
 
 from dancenet_core.errors import DanceNetError
 from dancenet_core.evaluation import comparison
@@ -99,7 +100,9 @@ def test_identical_sets_score_fid_zero_and_style_consistency_counts_named_segmen
     assert r["fid_g"] == pytest.approx(0, abs=1e-4)
     assert r["fid_style"] == pytest.approx(0, abs=1e-4)
     assert r["style_consistency"] == pytest.approx(6 / 8)  # the rumba's two segments are called waltz
-    assert r["div_k"] > 0
+    kinetic = reference["k"][:, reference["k"].std(axis=0) > 1e-6].astype(np.float64)
+    standard = (kinetic - kinetic.mean(axis=0)) / kinetic.std(axis=0)
+    assert r["div_k"] == pytest.approx(pdist(standard).mean(), rel=1e-4)  # Bailando's, in the reference's units
     assert r["joint_speed_m_s"] > 0
     assert r["root_extent_m"] > 0.5
 
