@@ -113,7 +113,7 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
 
 def same_tempo(read: float, song: float) -> bool:
     """Within TEMPO_TOLERANCE of the song's tempo, its half or its double."""
-    return min(abs(np.log(read / song * k)) for k in (0.5, 1.0, 2.0)) <= np.log1p(TEMPO_TOLERANCE)
+    return bool(min(abs(np.log(read / song * k)) for k in (0.5, 1.0, 2.0)) <= np.log1p(TEMPO_TOLERANCE))
 
 
 def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton, fps: float,
@@ -136,7 +136,8 @@ def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleto
         for hint, style in (("motion", ""), ("style", p.style)):
             a = analyze_clip(motion, style)
             row[hint] = {"bpm": round(a.tempo_bpm, 1), "meter": a.meter, "confidence": round(a.confidence, 3),
-                         "meter_right": a.meter == song_meter, "tempo_right": same_tempo(a.tempo_bpm, song_bpm)}
+                         "meter_right": bool(a.meter == song_meter),
+                         "tempo_right": bool(same_tempo(a.tempo_bpm, song_bpm))}
         clips.append(row)
 
     def shares(rows: list[dict]) -> dict:

@@ -43,7 +43,7 @@ TREND_S = 0.6  # the speed's slow trend, removed so that dips count against thei
 STYLE_METER = {"waltz": 3, "viennese waltz": 3, "viennese_waltz": 3, "cha-cha": 4, "chacha": 4, "cha_cha": 4,
                "rumba": 4, "tango": 4, "salsa": 4, "swing": 4, "foxtrot": 4, "quickstep": 4, "jive": 4, "samba": 4,
                "mambo": 4, "bachata": 4, "merengue": 4, "lindy": 4, "hiphop": 4, "hip-hop": 4, "house": 4,
-               "pop": 4, "disco": 4}
+               "pop": 4, "disco": 4, "latin": 4}
 METERS = (3, 4)
 BAR_RETURNS = (1, 2, 4)  # the pose is compared after this many bars
 STEP_WEIGHT = 0.2  # the steps' regularity, against the pose's return
