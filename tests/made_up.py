@@ -112,3 +112,14 @@ def arranged_training_song(path: Path, form: str = "ABACAB") -> Path | None:
     from dancenet_core.evaluation.form import arranged_song
 
     return arranged_song(data_root(), path, form)
+
+
+def read_video(path: Path) -> tuple[dict, np.ndarray]:
+    """A video file read back by imageio-ffmpeg's ffmpeg: its metadata (size, fps, duration) and its frames
+    [N, H, W, 3] uint8, so a test checks what a viewer would see, not that some bytes were written."""
+    import imageio_ffmpeg
+
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    width, height = meta["size"]
+    return meta, np.stack([np.frombuffer(f, np.uint8).reshape(height, width, 3) for f in reader])

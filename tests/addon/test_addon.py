@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from doubles import make_fake_generator, mixamo_rest, rigify_rest, synthetic_motion, write_song
+from made_up import read_video
 from scene_helpers import (
     BLENDER_ENV,
     IDENTITY_MAP,
@@ -454,9 +455,11 @@ def test_batch_renders_a_preview_video(addon, tmp_path, capsys):
         generator=make_fake_generator(),
     )
     assert code == 0, capsys.readouterr().out
-    video = tmp_path / "short" / "short.mp4"
-    assert video.is_file()
-    assert video.stat().st_size > 1000
+    meta, frames = read_video(tmp_path / "short" / "short.mp4")
+    # the take at the dance's 30 fps, 0.5 s of it, at the size asked for, with the song, the figure moving
+    assert (meta["size"], meta["fps"], meta["audio_codec"], frames.shape) == ((96, 64), 30, "aac", (15, 64, 96, 3))
+    assert (np.abs(np.diff(frames.astype(np.int16), axis=0)).max(axis=(1, 2, 3)) > 40).all()
+    assert (frames.std(axis=(1, 2, 3)) > 10).all()  # never a blank frame
     assert bpy.context.scene.render.engine == "BLENDER_WORKBENCH"
 
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
+from made_up import read_video
 
 from dancenet_core.cli import main
 
@@ -28,7 +30,11 @@ def test_sheet_and_video(dance: Path, tmp_path: Path, capsys: pytest.CaptureFixt
     assert main(["render", str(dance.with_suffix(".npz")), "-o", str(tmp_path / "v.mp4"), "--fps", "10",
                  "--width", "160", "--height", "90"]) == 0
     assert capsys.readouterr().out.startswith("80 frames at 10 fps")
-    assert (tmp_path / "v.mp4").stat().st_size > 1000
+    meta, frames = read_video(tmp_path / "v.mp4")
+    assert (meta["size"], meta["fps"], frames.shape) == ((160, 90), 10, (80, 90, 160, 3))
+    moving = np.abs(np.diff(frames.astype(np.int16), axis=0)).max(axis=(1, 2, 3))
+    assert (moving > 40).mean() > 0.9  # the dancer moves from frame to frame
+    assert (frames.std(axis=(1, 2, 3)) > 10).all()  # a figure on a floor, never a blank frame
 
 
 @pytest.mark.parametrize(("args", "says"), [
