@@ -1,11 +1,12 @@
 """Where the floor is under a dancer, from the lowest toe end: a constant height for a clip (`floor_offset`, the
-dataset fits) or a height per frame that follows a capture's drift (`floor_track`, the paired dataset and a
-motion library's clips). Torch-free: a library build in Blender uses it."""
+dataset fits), a height per frame that follows a capture's drift (`floor_track`, the paired dataset and a
+motion library's clips) or a generated dance's own contacts (`floor_shift`, the last step of generation).
+Torch-free: a library build in Blender uses it."""
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, minimum_filter1d
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d, minimum_filter1d
 
 from .motion import Motion
 from .skeleton import TOE_ENDS
@@ -27,3 +28,38 @@ def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5) ->
     toes = motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
     low = minimum_filter1d(toes, size=max(1, int(window_s * motion.fps)), mode="nearest")
     return gaussian_filter1d(low, smooth_s * motion.fps, mode="nearest")
+
+
+def floor_lift(low: np.ndarray) -> np.ndarray:
+    """Root lift [T] (metres) that keeps the lowest toe end `low` [T] at or above the floor (y = 0): the dip,
+    widened and smoothed so the lift eases in and out rather than jerking, and never less than the dip."""
+    need = np.maximum(0.0, -low)
+    return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
+
+
+def contact_floor(motion: Motion, contacts: np.ndarray, window_s: float = 2.0, smooth_s: float = 0.5) -> np.ndarray:
+    """The floor's height under a generated dance, frame by frame [T], from its predicted contacts [T, 2].
+
+    A planted toe (contact predicted) is on the floor: the floor over a 2-s window is the lowest planted toe in
+    it, or the lowest toe of any frame where the model predicts no contact in the whole window; smoothed as
+    `floor_track`, so the correction is a slow rise and fall of the whole body, never a jolt.
+    """
+    toes = motion.end_effectors()[:, list(TOE_ENDS), 1]
+    planted = np.where(np.asarray(contacts) > 0.5, toes, np.inf).min(axis=1)
+    size = max(1, int(window_s * motion.fps))
+    low = minimum_filter1d(planted, size=size, mode="nearest")
+    any_low = minimum_filter1d(toes.min(axis=1), size=size, mode="nearest")
+    return gaussian_filter1d(np.where(np.isfinite(low), low, any_low), smooth_s * motion.fps, mode="nearest")
+
+
+def floor_shift(motion: Motion, contacts: np.ndarray) -> np.ndarray:
+    """Height change of the root [T] (metres) that stands a generated dance's planted feet on the floor (y = 0),
+    frame by frame, and lifts it where a toe would still go through the floor. Only the root's height is to
+    change: the pose and the path on the floor are kept.
+
+    Why: the network's pelvis height wanders a few centimetres from its legs' length (the Latin dances hovered,
+    never a toe within 3 cm of the floor in 2 s), and the foot model only ever lifts."""
+    shift = -contact_floor(motion, contacts)
+    root = motion.root_positions + shift[:, None] * [0.0, 1.0, 0.0]
+    placed = Motion(motion.rotations, root, motion.fps, motion.skeleton)
+    return shift + floor_lift(placed.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1))

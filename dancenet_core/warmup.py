@@ -45,9 +45,9 @@ def _analysis() -> None:
 
 
 def _dance() -> None:
-    """The weights (kept by their loaders' caches for the real run), the sampler's kernel, the foot model."""
+    """The weights (kept by their loaders' caches for the real run), the sampler's kernel, the foot clean-up."""
     from .constants import DEFAULT_TEMPERATURE
-    from .engines.dancenet import foot_fixer, load_bundle, sample_dance
+    from .engines.dancenet import clean_feet, load_bundle, sample_dance
     from .engines.styles import load_style_model
     from .music.features import N_FEATURES
     from .runtime.sampler import Sampling, music_conditioning
@@ -57,7 +57,7 @@ def _dance() -> None:
     cond = music_conditioning(bundle.model, np.zeros((WARM_FRAMES, N_FEATURES), np.float32), 0)
     first = bundle.normalizer.normalize(bundle.start_frames[bundle.styles[0]][:1])
     takes = sample_dance(bundle, cond, first, Sampling(DEFAULT_TEMPERATURE, np.random.default_rng(0)))
-    foot_fixer()(takes[0])
+    clean_feet(bundle, takes[0])
 
 
 def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:

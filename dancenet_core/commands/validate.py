@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..engines.dancenet import CLEANUPS, FOOT_CLEANUP
 from ..evaluation import comparison
 
 
@@ -23,6 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--takes", type=int, default=2)
     p.add_argument("--footfix", type=Path, default=None, metavar="NPZ",
                    help="a foot model's runtime weights (a run's footfix.npz) instead of the shipped one")
+    p.add_argument("--cleanup", nargs="+", choices=[*CLEANUPS, "none"], default=[FOOT_CLEANUP],
+                   help=f"foot clean-ups to compare (default: generation's, {FOOT_CLEANUP}; none: the floor only)")
     p.add_argument("--curve", type=Path, default=None, metavar="RUN",
                    help="instead: the learning curve of a training run folder (its snapshots and log)")
     p.set_defaults(handler=comparison.validate)

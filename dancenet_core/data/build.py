@@ -3,6 +3,12 @@
 For each Dance with Melody sequence: fit our skeleton to its markers, put its feet on the floor, encode
 the paper's representation at the model's frame rate, and sample the song's music features at the
 times of the motion frames (song time = music_offset_s + t / fps, as the data README says).
+
+The floor is tracked frame by frame (the capture drifts upward by up to 0.5 m within a sequence) on the
+skeleton the dances are decoded on, the performers' average, not on each performer's own: the features keep
+the pelvis' height, so a dancer with longer legs than the average, decoded on the average skeleton, hovered
+(cha-cha DANCE_C_2: 1.6 cm at its lowest in most 2-s windows) and a shorter one sank (rumba R_2 and R_8:
+4.5 cm under the floor), and the model learnt each style's hovering or sinking with its steps.
 The CMU dance clips (no music) are retargeted onto our skeleton and cached the same way.
 
 Frame rate: 25 fps, the capture's own. Resampling up to 30 or 60 fps would invent frames, make the
@@ -11,6 +17,7 @@ dilated stack's 125-frame receptive field cover less time (5 s at 25 fps), and c
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -34,7 +41,7 @@ from .retarget import Retargeted, fit_targets, retarget
 
 MODEL_FPS = 25.0
 BUILD_VERSION = "dataset-2"  # the skeleton fits (slow); paired files carry their own version
-PAIR_VERSION = "pair-3"
+PAIR_VERSION = "pair-4"
 
 
 def dataset_cache_dir() -> Path:
@@ -124,9 +131,24 @@ def fitted_clip(clip: Clip, out_dir: Path, fit_steps: int = 200) -> tuple[Motion
     return motion, Retargeted(placed, source, targets).errors(), source
 
 
-def build_sequence(seq: Recording, out_dir: Path) -> PairedSequence:
+def floor_skeleton(seqs: list[Recording], out_dir: Path) -> Skeleton:
+    """The skeleton the floor is tracked on: the average of every sequence's fitted performer (what
+    `mean_skeleton` gives training, within millimetres); fits what is not fitted yet."""
+    offsets = []
+    for seq in seqs:
+        path = out_dir / f"{seq.seq}.motion.npz"
+        if not path.is_file():
+            fitted_motion(seq, out_dir)
+        offsets.append(np.load(path)["offsets"])
+    return Skeleton(np.mean(offsets, axis=0))
+
+
+def build_sequence(seq: Recording, out_dir: Path, floor_on: Skeleton | None = None) -> PairedSequence:
+    """One sequence paired with its music, its feet on the floor frame by frame when decoded on `floor_on`
+    (default: its own performer's skeleton)."""
     motion, err = fitted_motion(seq, out_dir)
-    motion.root_positions[:, 1] -= floor_track(motion)
+    skeleton = floor_on or motion.skeleton
+    motion.root_positions[:, 1] -= floor_track(Motion(motion.rotations, motion.root_positions, motion.fps, skeleton))
     analysis = analyze_music(seq.audio)
     times = seq.music_offset_s + np.arange(motion.num_frames) / MODEL_FPS
     music = music_at_frames(analysis.features, MUSIC_FPS, times)
@@ -150,15 +172,18 @@ def build_dataset(data_dir: Path, out_dir: Path | None = None, progress: bool = 
     out_dir = out_dir or dataset_cache_dir()
     out_dir.mkdir(parents=True, exist_ok=True)
     seqs = read_manifest(data_dir)
+    skeleton = floor_skeleton(seqs, out_dir)
+    # The floor depends on every performer (their average skeleton): the files name the skeleton they used.
+    tag = hashlib.sha1(np.round(skeleton.offsets, 6).tobytes()).hexdigest()[:8]
     result = []
     bar = tqdm(seqs, desc="dataset", unit="seq", disable=not progress)
     for seq in bar:
-        path = out_dir / f"{seq.seq}.{PAIR_VERSION}.npz"
+        path = out_dir / f"{seq.seq}.{PAIR_VERSION}.{tag}.npz"
         if path.is_file():
             result.append(PairedSequence.load(path))
             continue
         bar.set_postfix_str(seq.seq)
-        paired = build_sequence(seq, out_dir)
+        paired = build_sequence(seq, out_dir, skeleton)
         paired.save(path)
         result.append(paired)
     return result

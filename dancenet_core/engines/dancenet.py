@@ -15,6 +15,8 @@ from scipy.ndimage import gaussian_filter1d
 from ..constants import MIN_PART_S
 from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
+from ..floor import floor_shift
+from ..footlock import lock_feet
 from ..motion import Motion
 from ..music.features import FEATURE_SPEC, FeatureSpec, MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
@@ -55,6 +57,32 @@ def load_bundle(path: str | None = None) -> RuntimeBundle:
 def foot_fixer(path: Path | None = None) -> RuntimeFootFixer:
     """The shipped Foot Constraint Model, or the one at `path` (a run's `footfix.npz`, for validation); loaded once."""
     return RuntimeFootFixer.load() if path is None else RuntimeFootFixer.load(path)
+
+
+# Foot clean-ups (`clean_feet`): the Foot Constraint Model (a network over the lower body), the contact lock (two-bone
+# IK on the legs, `footlock.py`), or the one then the other; the one generation uses was chosen on the validation
+# songs (docs/training.md).
+CLEANUPS = ("model", "lock", "model+lock")
+FOOT_CLEANUP = "lock"
+
+
+def clean_feet(bundle: Bundle, feats: np.ndarray, cleanup: str | None = FOOT_CLEANUP,
+               footfix_weights: Path | None = None) -> np.ndarray:
+    """Unnormalised features [T, D] -> the same with the feet cleaned by `cleanup` (one of CLEANUPS; None: none)
+    and the dance standing on the floor, frame by frame, where its predicted contacts say (`floor.floor_shift`,
+    with or without a clean-up). The contact lock writes the legs' rotations back into the features, so a
+    continued dance joins its kept frames the same way. `footfix_weights`: a foot model other than the shipped one."""
+    if cleanup is not None and cleanup not in CLEANUPS:
+        raise DanceNetError(f"unknown foot clean-up {cleanup!r}; choose from {', '.join(CLEANUPS)}")
+    layout = FeatureLayout.for_skeleton(bundle.skeleton)
+    out = foot_fixer(footfix_weights)(feats) if cleanup in ("model", "model+lock") else feats.copy()
+    contacts = out[:, layout.contacts]
+    motion = decode(out, bundle.model.cfg.fps, bundle.skeleton)
+    if cleanup in ("lock", "model+lock"):
+        motion = lock_feet(motion, contacts)
+        out[:, layout.rotations] = motion.rotations[:, 1:].reshape(len(out), -1)
+    out[:, 1] += floor_shift(motion, contacts)
+    return out
 
 
 def sample_dance(bundle: Bundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,
@@ -124,7 +152,7 @@ class DanceNetEngine:
     def check(self, request: DanceRequest) -> None:
         """Load the weights (and the foot model when asked), so a bad file or an unknown style is reported now."""
         check_style(request.style, self.styles(request))
-        if request.footfix:
+        if request.footfix and FOOT_CLEANUP in ("model", "model+lock"):
             foot_fixer()
 
     def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
@@ -166,12 +194,10 @@ class DanceNetEngine:
 
         layout = FeatureLayout.for_skeleton(bundle.skeleton)
         takes_feats = [scale_moves(f, layout, request.move_scale) for f in takes_feats]
-        if request.footfix:
-            t = time.perf_counter()
-            progress("cleaning feet", 0.0)
-            fixer = foot_fixer()
-            takes_feats = [fixer(f) for f in takes_feats]
-            timings["footfix_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        progress("cleaning feet" if request.footfix else "placing on the floor", 0.0)
+        takes_feats = [clean_feet(bundle, f, FOOT_CLEANUP if request.footfix else None) for f in takes_feats]
+        timings["footfix_s"] = time.perf_counter() - t
         t = time.perf_counter()
         if prefix is None:
             motions = [decode(f, cfg.fps, bundle.skeleton) for f in takes_feats]

@@ -4,7 +4,7 @@
    number of steps (each in its own process, `--jobs` at a time; a finished run with the same settings is
    reused, so a second call only measures).
 2. Each model dances to the music spans of the test-split sequences (`--takes` seeds each, from the real
-   dance's first frame, in its style), as do the shipped DanceNet weights, with and without the foot model.
+   dance's first frame, in its style), as do the shipped DanceNet weights, with and without the foot clean-up.
 3. Every dance is cut into 10-s segments. Realism: FID of their kinetic and geometric features (AIST++) and
    of the motion-style classifier's features (the paper's FID) against the real dances of the training
    split; diversity: mean distance between segments in the same spaces; rhythm: Beat Align Score and the
@@ -13,7 +13,7 @@
 
 Writes `comparison.md`, `comparison.json`, `figure_3b.png` (the music's onset envelope over the dance's
 kinematic velocity, as the paper's Figure 3b) and `contact_sheet.png` (the same 20 s of a test waltz, the real
-dance above the shipped model's with the foot model below) into `--out`.
+dance above the shipped model's with the foot clean-up below) into `--out`.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
+from itertools import product
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,7 @@ from ..beats import BAS_SMOOTH_S, kinematic_velocity, motion_beats
 from ..checkpoint import load_weights
 from ..constants import DEFAULT_TEMPERATURE
 from ..data.build import with_mel_music
+from ..engines.dancenet import FOOT_CLEANUP
 from ..environment import default_data_dir
 from ..errors import DanceNetError
 from ..motion import Motion
@@ -52,6 +54,7 @@ from .metrics import (
     diversity,
     fid,
     nearest_segment_distance,
+    own_song_bas_ratio,
     physical_foot_contact,
 )
 from .motion_style import MotionStyleModel
@@ -60,10 +63,11 @@ from .test_split import dance_metrics, generate_for_pair, split_with_beats
 SEGMENT_S = 10.0
 COLUMNS: dict[str, str] = {
     "fid_k": "FID_k", "fid_g": "FID_g", "fid_style": "FID (style net)", "div_k": "Div_k", "div_g": "Div_g",
-    "div_style": "Div (style net)", "beat_align_score": "BAS", "rhythm_hit_rate": "Rhythm hit",
+    "div_style": "Div (style net)", "beat_align_score": "BAS", "bas_own_ratio": "BAS own/other songs",
+    "rhythm_hit_rate": "Rhythm hit",
     "pfc": "PFC", "foot_slide_ratio": "Foot slide", "jitter_m_s2": "Jitter (m/s²)",
     "longest_freeze_s": "Longest freeze (s)", "style_consistency": "Style consistency",
-    "root_extent_m": "Root extent (m)", "joint_speed_m_s": "Joint speed (m/s)",
+    "root_extent_m": "Root extent (m)", "joint_speed_m_s": "Joint speed (m/s)", "floor_reach": "Floor reach",
     "replay_m": "To nearest training 5 s (m)",
 }  # fmt: skip
 LOWER_IS_BETTER = {"fid_k", "fid_g", "fid_style", "pfc", "foot_slide_ratio", "longest_freeze_s"}
@@ -120,6 +124,10 @@ def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: Motion
             r[f"fid_{key}"] = fid(reference[key][:, keep], feats[key][:, keep])
             r[f"div_{key}"] = diversity(feats[key][:, keep], reference=reference[key][:, keep])
         r["style_consistency"] = float(feats["hit"].mean())
+        r["bas_own_ratio"] = own_song_bas_ratio(positions, fps, row.beats_s)
+        r["floor_reach_by_style"] = {s: float(np.mean([d["floor_reach"] for d, ds in zip(per_dance, row.styles,
+                                                                                             strict=True) if ds == s]))
+                                     for s in sorted(set(row.styles))}
         segs = np.concatenate([body_relative_segments(p[:, :BODY_JOINTS], fps, hop_s=2.0) for p in positions])
         r["replay_m"] = float(np.median(nearest_segment_distance(segs, reference["library"])))
         r["segments"] = int(len(feats["hit"]))
@@ -196,14 +204,15 @@ def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs:
 
 def dance_row(name: str, label: str, bundle: DanceNetBundle, test_pairs: list, beats: dict, takes: int,
               temperature: float, footfix: bool = False, smoothing: float | None = None,
-              footfix_weights: Path | None = None) -> DanceSet:
-    """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k)."""
+              footfix_weights: Path | None = None, cleanup: str = FOOT_CLEANUP) -> DanceSet:
+    """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k), feet cleaned by
+    `cleanup` when `footfix`."""
     row = DanceSet(name, label, info={"steps": bundle.info.get("steps"),
                                       "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
     for pair in test_pairs:
         for take in range(takes):
             row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing,
-                                                footfix_weights)[0])
+                                                footfix_weights, cleanup)[0])
             row.styles.append(pair.style)
             row.beats_s.append(beats[pair.seq])
     return row
@@ -243,7 +252,15 @@ def markdown(table: dict[str, dict], seconds: float, steps: int, takes: int, seg
         cells = [f"{r[k]:.3f}" if abs(r[k]) < 10 else f"{r[k]:.1f}" for k in COLUMNS]
         lines.append(f"| {r['label']} | " + " | ".join(cells)
                      + f" | {r.get('steps') or '-'} | {r.get('train_minutes') or '-'} |")
+    styles = sorted({s for r in table.values() for s in r["floor_reach_by_style"]})
+    lines += ["", "Floor reach by style (share of 2-s windows whose lowest toe end comes within 1.5 cm of the floor):",
+              "", "| model | " + " | ".join(styles) + " |", "|---|" + "---|" * len(styles)]
+    lines += [f"| {r['label']} | " + " | ".join(f"{r['floor_reach_by_style'][s]:.2f}" if s in r["floor_reach_by_style"]
+                                                else "-" for s in styles) + " |" for r in table.values()]
     lines += [
+        "",
+        "BAS own/other songs: each dance's Beat Align Score against its own song's beats over its score against "
+        "the other songs' beats of the set (a dance that ignores its song scores about 1).",
         "",
         f"Lower is better for {', '.join(COLUMNS[k] for k in sorted(LOWER_IS_BETTER))}; higher for the rest "
         "(Jitter: closest to the real dances). FIDs and diversities are computed on 10-s segments against the "
@@ -296,7 +313,8 @@ def compare(args: argparse.Namespace) -> int:
     if not args.library_only:
         rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
                               args.takes, temperature))
-        rows.append(dance_row("dancenet_shipped_footfix", "DanceNet, shipped weights + foot model", shipped,
+        rows.append(dance_row("dancenet_shipped_footfix", f"DanceNet, shipped weights + foot clean-up ({FOOT_CLEANUP})",
+                              shipped,
                               test_pairs, beats, args.takes, temperature, footfix=True))
     if args.library or args.library_only:
         train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
@@ -343,7 +361,7 @@ def compare(args: argparse.Namespace) -> int:
 def validate(args: argparse.Namespace) -> int:
     """`dancenet validate`: DanceNet's sampling settings scored on the split's validation songs (training songs
     that `train --validation` leaves out), never on the test songs: every weights file x temperature x output
-    smoothing dances to them (foot model on, as shipped) and is measured as `evaluate` measures, against the
+    smoothing dances to them (foot clean-up on, as shipped) and is measured as `evaluate` measures, against the
     real validation dances and the dances the models trained on."""
     t0 = time.perf_counter()
     if not args.weights and not args.curve:
@@ -367,13 +385,13 @@ def validate(args: argparse.Namespace) -> int:
     for path in args.weights:
         bundle = DanceNetBundle.load(path)
         k = bundle.model.cfg.mixtures
-        for temperature in args.temperatures:
-            for smoothing in args.smoothing:
-                name = f"{path} T={temperature} smooth={smoothing}"
-                rows.append(dance_row(name, f"{run_label(Path(path), bundle)} (K={k}), T {temperature}, "
-                                      f"smoothing {smoothing}", bundle, val, beats, args.takes, temperature,
-                                      footfix=True, smoothing=smoothing, footfix_weights=args.footfix))
-                print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
+        for temperature, smoothing, cleanup in product(args.temperatures, args.smoothing, args.cleanup):
+            name = f"{path} T={temperature} smooth={smoothing}" + ("" if cleanup == FOOT_CLEANUP else f" {cleanup}")
+            rows.append(dance_row(name, f"{run_label(Path(path), bundle)} (K={k}), T {temperature}, "
+                                  f"smoothing {smoothing}, feet: {cleanup}", bundle, val, beats, args.takes,
+                                  temperature, footfix=cleanup != "none", smoothing=smoothing,
+                                  footfix_weights=args.footfix, cleanup=cleanup))
+            print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
     table = measure(rows, ref, fps, style_net)
     if args.drift:
         free_running_levels(args, val)
@@ -414,7 +432,7 @@ def run_label(path: Path, bundle: DanceNetBundle) -> str:
 def learning_curve(run: Path, val: list, beats: dict, ref: dict, style_net: MotionStyleModel, real: DanceSet,
                    args: argparse.Namespace) -> int:
     """Validation loss (from the run's log) and FID_k on the validation songs (one take each, at the first
-    temperature asked for, foot model on) of every snapshot a training run kept, against training time."""
+    temperature asked for, foot clean-up on) of every snapshot a training run kept, against training time."""
     plt = pyplot()
     log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
     val_loss = {r["step"]: r["val_loss"] for r in log if "val_loss" in r}

@@ -52,6 +52,28 @@ def beat_align_score(positions: np.ndarray, fps: float, music_beats_s: np.ndarra
     return float(np.mean(np.exp(-(d**2) / (2 * BAS_SIGMA_S**2)))) if len(d) else 0.0
 
 
+def own_song_bas_ratio(positions: Sequence[np.ndarray], fps: float, beats_s: Sequence[np.ndarray]) -> float:
+    """Mean BAS of each dance against its own song's beats over its mean BAS against the other songs' beats
+    (each other song of the set once, however many dances share it).
+
+    Why: a dance that moves rhythmically but ignores its song scores a BAS as high against any song of a similar
+    tempo as against its own (ratio about 1); one that follows its song's beats scores higher against them.
+    NaN when every dance is to the same song: there is no other song to compare with.
+    """
+    songs: list[np.ndarray] = []
+    for b in beats_s:
+        if not any(len(b) == len(o) and np.array_equal(b, o) for o in songs):
+            songs.append(np.asarray(b))
+    if len(songs) < 2:
+        return float("nan")
+    own, other = [], []
+    for pos, b in zip(positions, beats_s, strict=True):
+        own.append(beat_align_score(pos, fps, b))
+        other.append(np.mean([beat_align_score(pos, fps, o) for o in songs
+                              if not (len(o) == len(b) and np.array_equal(o, b))]))
+    return float(np.mean(own) / max(np.mean(other), 1e-9))
+
+
 def rhythm_hit_rate(positions: np.ndarray, fps: float, music_beats_s: np.ndarray) -> float:
     """The paper's rhythm hit rate: share of music beats with a dance beat within 0.25 s."""
     d = _beat_distances(positions, fps, music_beats_s)
@@ -78,6 +100,22 @@ def foot_sliding(toes: np.ndarray, fps: float, floor: float | None = None) -> Fo
         return FootSliding(0.0, 0.0, 0.0)
     slide = step[contact] * fps > SLIDE_SPEED_MPS
     return FootSliding(float(slide.mean()), float(step[contact].mean()), float(contact.mean()))
+
+
+FLOOR_WINDOW_S = 2.0
+FLOOR_REACH_M = 0.015
+
+
+def floor_reach(lowest_toe: np.ndarray, fps: float) -> float:
+    """Share of 2-s windows [0, 1] in which the lowest toe end `lowest_toe` [T] (height above the floor, y = 0)
+    comes within 1.5 cm of the floor, above or below: a ballroom dancer has a foot on the floor within any two
+    seconds, so a window where no toe gets near it is a hovering (or sinking) dancer."""
+    n = max(1, int(round(FLOOR_WINDOW_S * fps)))
+    k = len(lowest_toe) // n
+    if k == 0:
+        return float(abs(np.min(lowest_toe)) <= FLOOR_REACH_M)
+    lowest = np.asarray(lowest_toe)[: k * n].reshape(k, n).min(axis=1)
+    return float(np.mean(np.abs(lowest) <= FLOOR_REACH_M))
 
 
 def jitter(positions: np.ndarray, fps: float) -> float:

@@ -20,8 +20,9 @@ from torch import nn
 from ..checkpoint import load_weights, save_weights
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
+from ..floor import floor_lift
 from ..representation import FeatureLayout, Normalizer
-from ..runtime.weights import FootChannels, floor_lift
+from ..runtime.weights import FootChannels
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .kinematics_torch import rotvec_to_matrix_torch
 
@@ -109,7 +110,7 @@ class FootFixer:
         return out
 
     def floor_lift(self, x: np.ndarray) -> np.ndarray:
-        """Root lift [T] (metres) that keeps both toe ends at or above the floor (see `runtime.floor_lift`)."""
+        """Root lift [T] (metres) that keeps both toe ends at or above the floor (see `floor.floor_lift`)."""
         return floor_lift(self.kin(torch.tensor(x[None, :, self.ch.lower]))[0, :, :, 1].min(-1).values.numpy())
 
     def save(self, path: Path, info: dict) -> None:

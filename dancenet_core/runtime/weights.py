@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from scipy.special import softmax
 
 from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
+from ..floor import floor_lift
 from ..music.style import StyleClassifier, weights_inputs
 from ..representation import FeatureLayout, Normalizer
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
@@ -146,13 +146,6 @@ class FootChannels:
     def corrected(self) -> np.ndarray:
         """The feature channels the model's output is added to."""
         return self.lower[self.steered]
-
-
-def floor_lift(low: np.ndarray) -> np.ndarray:
-    """Root lift [T] (metres) that keeps the lowest toe end `low` [T] at or above the floor (y = 0): the dip,
-    widened and smoothed so the lift eases in and out rather than jerking, and never less than the dip."""
-    need = np.maximum(0.0, -low)
-    return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
 
 
 class RuntimeFootFixer:

@@ -66,6 +66,12 @@ class TrainSettings:
         0.0, "weight of the travel loss: the root's predicted displacement and turn summed over --travel-windows "
              "against the dancer's (keeps the path a dance takes, not only its next step)")
     travel_windows: list[int] = _option([25, 100], "frame counts the travel loss sums over (1 s and 4 s)", nargs="+")
+    history_dropout: float = _option(
+        0.0, "share of input frames hidden whole (set to the capture's mean) in stretches of --history-stretch "
+             "frames: with the last frames hidden the model has to find where the dance is in its bar from the "
+             "music, which it otherwise reads off the frames before")
+    history_stretch: int = _option(12, "length in frames of each hidden stretch of --history-dropout (12: about a "
+                                       "beat at 120 BPM)")
     pack: Path | None = _option(
         None, "train from a training pack (`dancenet data pack`) instead of the data folder (a GPU machine "
               "without madmom or the data)")
@@ -130,6 +136,26 @@ class MotionStyleSettings:
     out: Path = _option(WEIGHTS_DIR / "motion_style.pt", "weights file (the card goes beside it)")
     steps: int = _option(1200, "training steps")
     seed: int = _option(2020, "seed of training")
+
+
+@dataclass
+class MatchSettings:
+    """The match of music and movement (the library engine's figures against the song's bars), settings chosen on
+    the validation songs."""
+
+    out: Path = _option(WEIGHTS_DIR / "match.npz", "weights file (the card goes beside it)")
+    validate: bool = _option(False, "report on the validation songs (never on the test songs) and write the card "
+                                    "beside --out as <name>_card.md; training leaves the validation songs out "
+                                    "either way")
+    steps: int = _option(600, "training steps (lr drops by 10 at 75%%)")
+    context: int = _option(2, "bars of music either side of a bar that its embedding reads")
+    style_weight: float = _option(1.0, "weight of the training styles' classifier loss on both embeddings beside "
+                                       "the contrastive one (0: contrastive alone)")
+    balanced: bool = _option(True, "batches drawn with every style equally likely")
+    dropout: float = _option(0.5, "dropout of the inputs and the hidden layer")
+    noise: float = _option(0.5, "Gaussian noise on the standardised inputs in training")
+    temperature: float = _option(0.1, "temperature of the contrastive loss")
+    seed: int = _option(0, "seed of training")
 
 
 def _plain_type(annotation: Any) -> Any:

@@ -129,6 +129,18 @@ def with_own_predictions(model: torch.nn.Module, frames: torch.Tensor, music: to
     return mixed
 
 
+def hide_history(frames: torch.Tensor, share: float, stretch: int) -> torch.Tensor:
+    """Input frames [B, T, D] with stretches of `stretch` whole frames (`share` of them, `own_mask`) set to zero,
+    the capture's mean once normalised.
+
+    Why: the dilated stack reads the dance's phase off the frames before (and the input skip copies the last
+    one), so teacher forcing barely needs the music, and a dance keeps its own rhythm whatever the song does
+    (its BAS against other songs' beats was within 5% of its own song's). With the recent frames hidden, the
+    next frame's timing can only come from the music."""
+    hidden = own_mask(frames.shape[:2], share, stretch, frames.device)
+    return frames.masked_fill(hidden[..., None], 0.0)
+
+
 ROOT_STEP = [0, 2, 3]  # the root's sideways and forward step and its turn (representation.py)
 
 
@@ -329,6 +341,8 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
             noisy = with_own_predictions(model, noisy, music, style, share, args.own_passes, args.own_stretch,
                                          args.own_temperature)
         x = F.dropout(noisy, cfg.input_dropout, training=True)
+        if args.history_dropout > 0:
+            x = hide_history(x, args.history_dropout, args.history_stretch)
         # A residual output starts from the frame before dropout: dropout hides channels from the network,
         # not from the frame the change is added to (at generation that frame is whole).
         o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)

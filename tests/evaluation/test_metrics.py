@@ -9,11 +9,13 @@ from dancenet_core.evaluation.metrics import (
     beat_align_score,
     diversity,
     fid,
+    floor_reach,
     foot_sliding,
     frechet_distance,
     jitter,
     longest_freeze_s,
     motion_beats,
+    own_song_bas_ratio,
     physical_foot_contact,
     rhythm_hit_rate,
     root_extent_m,
@@ -143,3 +145,25 @@ def test_pfc_of_sliding_feet_under_an_accelerating_root() -> None:
     one_foot = _feet_and_root(30.0, 3.0, speed, [0.5, 0.0, 0.0])
     one_foot[:, 8, 0] = one_foot[:, 11, 0] = 0.0  # the right foot planted: no penalty
     assert physical_foot_contact(one_foot, 30.0) == 0.0
+
+
+def test_own_song_ratio_tells_a_dance_that_follows_its_song_from_one_that_does_not() -> None:
+    """Dances on the beats of their own song score well above 1; the same dances given each other's songs score
+    below 1; a song danced twice (two takes) counts once among the others."""
+    fps = 25.0
+    song_a, song_b = np.arange(1.0, 19.0, 0.5), np.arange(1.25, 19.0, 0.5)  # same tempo, half a beat apart
+    on_a, on_b = _bouncing(fps, song_a, 20.0), _bouncing(fps, song_b, 20.0)
+    on_b[:, :, 1] = (-np.cos(2 * np.pi * ((np.arange(len(on_b)) + 0.3) / fps - 0.25)) / (2 * np.pi))[:, None]
+    ratio = own_song_bas_ratio([on_a, on_a, on_b], fps, [song_a, song_a, song_b])
+    assert ratio > 5
+    assert own_song_bas_ratio([on_a, on_b], fps, [song_b, song_a]) < 0.2
+    assert np.isnan(own_song_bas_ratio([on_a, on_a], fps, [song_a, song_a.copy()]))  # no other song
+
+
+def test_floor_reach_counts_the_windows_whose_lowest_toe_comes_near_the_floor() -> None:
+    fps = 25.0
+    low = np.full(250, 0.05)  # 10 s: five 2-s windows, the toe 5 cm up
+    assert floor_reach(low, fps) == 0.0
+    low[10], low[60] = 0.01, -0.012  # one touch in each of the first two windows, one just under the floor
+    low[110] = -0.03  # sinking 3 cm is no better than hovering
+    assert floor_reach(low, fps) == pytest.approx(2 / 5)

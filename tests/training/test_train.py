@@ -20,6 +20,7 @@ from dancenet_core.representation import FeatureLayout, Normalizer
 from dancenet_core.skeleton import DEFAULT_SKELETON
 from dancenet_core.training.blend import blend
 from dancenet_core.training.dancenet import (
+    hide_history,
     own_mask,
     prime_rmsprop,
     travel_loss,
@@ -122,6 +123,15 @@ def test_own_stretches_cover_the_share_asked_for() -> None:
         assert abs(mask.float().mean().item() - share) < 0.05
         runs = torch.diff(mask[0].int()).abs().sum().item()  # own stretches come whole, not as single frames
         assert runs <= 2 * 400 / 10 * share + 2
+
+
+def test_hidden_history_hides_whole_frames_in_stretches() -> None:
+    frames = torch.randn(8, 200, 5) + 3.0
+    hidden = hide_history(frames, 0.25, 12)
+    gone = (hidden == 0).all(-1)
+    assert ((hidden == frames).all(-1) | gone).all()  # a frame is kept whole or hidden whole
+    assert abs(gone.float().mean().item() - 0.25) < 0.05
+    assert torch.diff(gone[0].int()).abs().sum().item() <= 2 * 200 / 12 * 0.25 + 2
 
 
 def test_travel_loss_is_zero_on_the_dancers_path_and_grows_with_a_timid_one() -> None:

@@ -1,0 +1,77 @@
+"""The contact lock (two-bone IK on predicted contacts) and the floor pass from predicted contacts, on made-up
+dances whose feet slide and hover by known amounts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dancenet_core.floor import contact_floor, floor_shift
+from dancenet_core.footlock import hold_weights, lock_feet
+from dancenet_core.motion import Motion
+from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
+
+FPS = 25.0
+
+
+def _gliding(frames: int = 100, lift: float = 0.0) -> Motion:
+    """A dancer with bent knees gliding forward at 0.5 m/s, swaying a little, its toes `lift` above the floor."""
+    t = np.arange(frames) / FPS
+    rot = np.zeros((frames, 55, 3))
+    for side in ("left", "right"):
+        rot[:, JOINT_INDEX[f"{side}_hip"], 0] = -0.3
+        rot[:, JOINT_INDEX[f"{side}_knee"], 0] = 0.5
+        rot[:, JOINT_INDEX[f"{side}_ankle"], 0] = -0.2
+    rot[:, JOINT_INDEX["spine1"], 2] = 0.1 * np.sin(2 * np.pi * t)
+    root = np.stack([0.02 * np.sin(np.pi * t), np.full(frames, 0.9), 0.5 * t], -1)
+    m = Motion(rot, root, FPS, DEFAULT_SKELETON)
+    low = m.end_effectors()[:, list(TOE_ENDS), 1].min()
+    m.root_positions[:, 1] += lift - low
+    return m
+
+
+def test_hold_weights_ease_in_and_out_and_skip_flicker() -> None:
+    planted = np.zeros(40, bool)
+    planted[10:20] = True
+    planted[30] = True  # one frame: flicker
+    w, run = hold_weights(planted, FPS)
+    assert (w[10:20] == 1).all() and (run[10:20] == 0).all()
+    assert 0 < w[8] < w[9] < 1 and 0 < w[21] < w[20] and w[5] == 0 and w[25] == 0
+    assert (w[28:33] == 0).all() and (run[28:33] == -1).all()
+
+
+def test_a_planted_foot_stays_put_and_only_the_legs_move() -> None:
+    m = _gliding()
+    contacts = np.zeros((m.num_frames, 2))
+    contacts[30:50, 0] = 1  # the left foot planted for 0.8 s while the body glides 0.4 m
+    locked = lock_feet(m, contacts)
+    before, after = m.end_effectors()[:, list(TOE_ENDS)], locked.end_effectors()[:, list(TOE_ENDS)]
+    held = after[30:50, 0]
+    assert np.linalg.norm(held[:, [0, 2]] - held[:, [0, 2]].mean(0), axis=-1).max() < 0.01  # was 0.2 m either way
+    assert np.abs(held[:, 1] - before[30:50, 0, 1]).max() < 0.02  # the toe keeps its height
+    np.testing.assert_allclose(after[:, 1], before[:, 1], atol=1e-9)  # the other foot is untouched
+    np.testing.assert_allclose(after[:25, 0], before[:25, 0], atol=1e-9)  # so is this one away from the hold
+    changed = np.abs(locked.rotations - m.rotations).max(axis=(0, 2)) > 1e-9
+    legs = {JOINT_INDEX[n] for n in ("left_hip", "left_knee", "left_ankle")}
+    assert set(np.flatnonzero(changed)) <= legs
+    np.testing.assert_array_equal(locked.root_positions, m.root_positions)
+    # The foot lies as it did: the ankle's world turn is kept.
+    from dancenet_core.kinematics import fk_numpy
+
+    wr0, wr1 = fk_numpy(m.skeleton, m.rotations, m.root_positions)[1], fk_numpy(
+        m.skeleton, locked.rotations, locked.root_positions)[1]
+    a = JOINT_INDEX["left_ankle"]
+    np.testing.assert_allclose(wr1[:, a], wr0[:, a], atol=1e-6)
+
+
+def test_the_floor_pass_stands_a_hovering_dance_on_its_planted_feet() -> None:
+    m = _gliding(lift=0.06)
+    contacts = np.zeros((m.num_frames, 2))
+    contacts[::2, 0] = 1
+    shift = floor_shift(m, contacts)
+    np.testing.assert_allclose(shift, -0.06, atol=1e-6)
+    np.testing.assert_allclose(contact_floor(m, contacts), 0.06, atol=1e-6)
+    sunk = _gliding(lift=-0.04)
+    placed = sunk.root_positions[:, 1] + floor_shift(sunk, contacts)
+    lowest = Motion(sunk.rotations, sunk.root_positions * [1, 0, 1] + placed[:, None] * [0, 1, 0], FPS,
+                    sunk.skeleton).end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
+    assert lowest.min() > -1e-6 and lowest.max() < 1e-3
