@@ -524,11 +524,8 @@ def _run_ray(todo: list, task: SongTask, out: Path, jobs: int, address: str | No
         local = address is None and not os.environ.get("RAY_ADDRESS")
         ray.init(address=address, num_cpus=max(1, jobs) if local else None, include_dashboard=False,
                  logging_level="ERROR", configure_logging=True)
-    # Songs side by side, the analysis of each on one core; numpy's BLAS with the driver's thread count
-    # (Ray gives its workers one), which the dance's last bits depend on: the same bytes as `dancenet generate`.
-    threads = os.environ.get("OMP_NUM_THREADS") or str(os.cpu_count() or 1)
-    env = {"DANCENET_WORKERS": "1", "OMP_NUM_THREADS": threads,
-           "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", threads)}
+    # Songs side by side, the analysis of each in its task's process alone.
+    env = {"DANCENET_WORKERS": "1"}
     remote = ray.remote(_ray_song).options(num_cpus=1, max_retries=1, runtime_env={"env_vars": env})
     queue = deque(todo)
     pending: dict[Any, tuple] = {}

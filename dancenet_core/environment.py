@@ -6,16 +6,21 @@ and training never disagree."""
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ParamSpec, TypeVar
 
 if TYPE_CHECKING:
     from concurrent.futures import Executor
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 # Shipped checkpoints, the song split and the model cards.
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
@@ -53,6 +58,22 @@ def default_workers() -> int:
     if env.isdigit() and int(env) > 0:
         return int(env)
     return 1 if "bpy" in sys.modules else min(2, os.cpu_count() or 1)
+
+
+def one_blas_thread(fn: Callable[P, R]) -> Callable[P, R]:
+    """`fn` with numpy's and scipy's BLAS on one thread: a matrix product's sums then run in one order, so a
+    song's analysis and its dance are the same bytes whatever the machine's cores, `OMP_NUM_THREADS` or process
+    (two threads moved the music features by up to 2e-4, and through the sampler the whole dance). Songs and
+    blocks run side by side in processes instead (`default_workers`, `dancenet batch --jobs`)."""
+
+    @functools.wraps(fn)
+    def on_one_thread(*args: P.args, **kwargs: P.kwargs) -> R:
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return on_one_thread
 
 
 def end_with_parent(parent: int) -> None:

@@ -18,6 +18,7 @@ import numpy as np
 from .constants import MIN_PART_S
 from .continuation import DIFFERENCES, keep_original
 from .engines import Engine, Takes, get_engine
+from .environment import one_blas_thread
 from .errors import DanceNetError, GenerationCancelled
 from .motion import Motion
 from .music.features import MusicAnalysis, analyze_music
@@ -61,6 +62,7 @@ def available_styles(engine: str = DEFAULT_ENGINE, weights: str | None = None) -
     return get_engine(engine).styles(DanceRequest(Path(), engine=engine, weights=weights))  # no song is read
 
 
+@one_blas_thread
 def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
                    should_cancel: Callable[[], bool] | None = None) -> GenerationResult:
     """The request's takes for its song, or for the part from `start_s` to `end_s` seconds, with the beats

@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import jit
 from ..atomic import atomic_open
-from ..environment import cache_root, default_workers, end_with_parent, stop_pool
+from ..environment import cache_root, default_workers, end_with_parent, one_blas_thread, stop_pool
 from ..errors import DanceNetError, first_line
 from ..progress import Progress
 from ..series import interp_frames, stretch_frames
@@ -220,6 +220,7 @@ def cache_key(path: str | Path) -> str:
             DBN_CONTEXT_S,
             list(BEATS_PER_BAR),
             MEL_BANDS,
+            "blas-threads-1",  # the networks' sums in one order (`one_blas_thread`); before, in as many as threads
         ]
     )
     h.update(settings.encode())
@@ -395,6 +396,7 @@ def _processors() -> tuple:
     return OnsetAndBeat(), DeepChromaProcessor(), mel
 
 
+@one_blas_thread
 def _network_block(
     x: np.ndarray, c0: int, c1: int, last: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
