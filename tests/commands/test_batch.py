@@ -241,10 +241,11 @@ def test_a_bad_csv_is_one_line(text: str, says: str, tmp_path: Path, capsys: pyt
 
 
 def test_every_request_option_is_a_csv_column(tmp_path: Path) -> None:
-    flags = [o.flag.lstrip("-").removeprefix("no-") for _n, _d, o in options() if o.flag]
+    columns = [o.flag.lstrip("-").removeprefix("no-") for _n, _d, o in options() if o.flag]
     listing = tmp_path / "all.csv"
-    listing.write_text(",".join(["song", *flags]) + "\n" + "x.wav" + "," * len(flags) + "\n"
-                       + "y.wav,,,,,," + ",".join("no" if f == "footfix" else "" for f in flags[5:]) + "\n")
+    rows = [["song", *columns], ["x.wav", *([""] * len(columns))],
+            ["y.wav", *("no" if c == "footfix" else "" for c in columns)]]
+    listing.write_text("".join(",".join(row) + "\n" for row in rows))
     first, second = read_catalog([listing])
     assert (first.settings, second.settings) == ({}, {"footfix": False})
     assert first.path == tmp_path / "x.wav"
