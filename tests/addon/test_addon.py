@@ -463,6 +463,25 @@ def test_batch_renders_a_preview_video(addon, tmp_path, capsys):
     assert bpy.context.scene.render.engine == "BLENDER_WORKBENCH"
 
 
+def test_batch_skips_what_it_did_before_and_force_dances_it_again(addon, tmp_path, capsys):
+    from blender_addon import batch
+
+    song = write_song(tmp_path / "again.wav", 0.5)
+    args = [str(song), "--out", str(tmp_path / "out"), "--bvh"]
+    assert batch.main(args, generator=make_fake_generator()) == 0
+    blend = tmp_path / "out" / "again" / "again.blend"
+    made = blend.stat().st_mtime_ns
+    capsys.readouterr()
+    assert batch.main(args, generator=make_fake_generator()) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("SKIPPED again.wav: done before") and lines[-1] == "1 of 1 songs done", lines
+    assert blend.stat().st_mtime_ns == made
+    assert batch.main([*args, "--seed", "2"], generator=make_fake_generator()) == 0  # another request
+    assert capsys.readouterr().out.startswith("OK      again.wav")
+    assert batch.main([*args, "--seed", "2", "--force"], generator=make_fake_generator()) == 0
+    assert capsys.readouterr().out.startswith("OK      again.wav")
+
+
 def _run_python(code: str, tmp_path: Path, timeout: float = 120) -> subprocess.CompletedProcess:
     env = {**os.environ, **BLENDER_ENV, "HOME": str(tmp_path / "home"), "PYTHONPATH": str(ROOT / "tests" / "addon")}
     return subprocess.run(
