@@ -198,6 +198,30 @@ def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted
     assert not any(TEMP_MARK in p.name for p in (out / RECORDS).iterdir())
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
+def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: Path, reference: dict,
+                                                                       tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while _done(out) < 1 and run.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    workers = _children(run.pid)
+    os.killpg(run.pid, signal.SIGINT)  # what Ctrl-C in its terminal sends
+    _stdout, stderr = run.communicate(timeout=30)
+    assert run.returncode == 130 and stderr.strip().splitlines()[-1] == "dancenet: interrupted", stderr
+    assert workers and not any(Path(f"/proc/{pid}").exists() for pid in workers)
+    assert "Traceback" not in stderr
+    done = {n for n, s in _status(out).items() if s == "done"}
+    assert done and not any(TEMP_MARK in p.name for p in out.rglob("*"))
+    rerun = subprocess.run(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), capture_output=True, text=True,
+                           timeout=120)
+    assert rerun.returncode == 1, rerun.stderr
+    assert {n for n, s in _status(out).items() if s == "skipped"} == done
+    _assert_same_as_generate(out, reference)
+
+
 def test_the_csv_gives_each_song_its_settings(songs: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     listing = tmp_path / "list" / "catalog.csv"
     listing.parent.mkdir()
