@@ -266,9 +266,9 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     scale = None
 
     def joins(n_prev: int) -> tuple:
-        """For figures n_prev song beats long: where each ends (an index into the distinct ends), the cost [E, U]
-        of a cut from each distinct end to each distinct start, and per figure the end it carries on from (its
-        clip's own continuation, -1: none)."""
+        """For figures n_prev song beats long: where each ends (an index into the distinct ends), the cost [U, E]
+        of a cut to each distinct start from each distinct end (float32, a row per start: the min over ends runs
+        along memory), and per figure the end it carries on from (its clip's own continuation, -1: none)."""
         nonlocal scale
         if n_prev not in cache:
             ends = starts + ratios * n_prev
@@ -278,7 +278,8 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
             if scale is None:
                 scale = float(np.median(d)) or 1.0
             k = np.minimum(np.searchsorted(uend, starts), len(uend) - 1)
-            cache[n_prev] = (end_of, d / scale + settings.cut, np.where(uend[k] == starts, k, -1))
+            cut = np.ascontiguousarray((d / scale + settings.cut).T, dtype=np.float32)
+            cache[n_prev] = (end_of, cut, np.where(uend[k] == starts, k, -1))
         return cache[n_prev]
 
     def unary(b: int) -> tuple[np.ndarray, np.ndarray]:
@@ -315,12 +316,12 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
         end_of, cut_cost, carries = joins(grid.bars[b - 1][1])
         # the cheapest figure ending at each distinct end
         order = np.lexsort((cost, end_of))
-        best = order[np.searchsorted(end_of[order], np.arange(cut_cost.shape[0]))]
+        best = order[np.searchsorted(end_of[order], np.arange(cut_cost.shape[1]))]
         ending = cost[best]
-        total = ending[:, None] + cut_cost
-        came = np.argmin(total, axis=0)
+        total = cut_cost + ending.astype(np.float32)[None, :]
+        came = np.argmin(total, axis=1)
         u, speed = unary(b)
-        by_cut = total[came, np.arange(len(ustarts))][start_of] + calm(speed)
+        by_cut = total[np.arange(len(ustarts)), came][start_of] + calm(speed)
         by_carry = np.where(carries >= 0, ending[np.maximum(carries, 0)], np.inf)
         carry = by_carry <= by_cut
         back[b] = np.where(carry, best[np.maximum(carries, 0)], best[came[start_of]])

@@ -22,7 +22,7 @@ from ..motion import Motion
 from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis
 
-LIBRARY_VERSION = "motion-library-2"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-3"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
@@ -131,7 +131,7 @@ class MotionLibrary:
                 root_positions=self.root_positions, offsets=self.offsets, clip_starts=self.clip_starts,
                 tempo_bpm=self.tempo_bpm, meter=self.meter, beats=self.beats, beat_clip=self.beat_clip,
                 downbeat=self.downbeat, features=self.features, energy=self.energy, confidence=self.confidence,
-                meta=np.array(json.dumps(meta)))
+                step_p99=self.step_p99, step_ratios=self.step_ratios, meta=np.array(json.dumps(meta)))
 
     @classmethod
     def load(cls, path: str | Path) -> MotionLibrary:
@@ -145,12 +145,15 @@ class MotionLibrary:
                           list(meta["names"]), list(meta["styles"]), z["tempo_bpm"], z["meter"], z["beats"],
                           z["beat_clip"], z["downbeat"], z["features"], z["energy"], z["confidence"],
                           list(meta["source"]), float(meta["fps"]), tuple(meta["notes"]))
+                # how far the dancers step, measured once at the build (a forward kinematics pass over every frame)
+                lib.__dict__["step_p99"], lib.__dict__["step_ratios"] = z["step_p99"], z["step_ratios"]
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise ValueError(f"{path}: not a motion library ({e})") from e
         n, b = len(lib.rotations), len(lib.beats)
         if (lib.rotations.shape[1:] != (lib.offsets.shape[0], 3) or lib.root_positions.shape != (n, 3)
                 or lib.clip_starts[-1] != n or len(lib.names) + 1 != len(lib.clip_starts)
                 or not len(lib.names) == len(lib.confidence) == len(lib.source)
+                or lib.step_ratios.shape != (n,) or lib.step_p99.shape != (BODY_JOINTS,)
                 or lib.features.shape != (b, FEATURE_DIM) or not len(lib.beat_clip) == len(lib.downbeat) == b):
             raise ValueError(f"{path}: a motion library whose arrays do not fit each other")
         return lib
