@@ -1,4 +1,4 @@
-"""`dancenet train dancenet|blend|footfix|style|motion-style`: the options come from the settings dataclasses
+"""`dancenet train dancenet|blend|footfix|style|motion-style|match`: the options come from the settings dataclasses
 (`training/configs.py`), so the command line and code that builds settings directly never disagree."""
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from ..training.cards import write_motion_style_card, write_style_card
 from ..training.configs import (
     BlendSettings,
     FootfixSettings,
+    MatchSettings,
     MotionStyleSettings,
     StyleSettings,
     TrainSettings,
@@ -21,6 +22,7 @@ from ..training.configs import (
 )
 from ..training.dancenet import train
 from ..training.footfix import train_footfix
+from ..training.match import train_and_ship as train_match
 from ..training.motion_style import train_and_ship
 from ..training.style import train_style
 
@@ -30,7 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     for name, settings, handler in (("dancenet", TrainSettings, _dancenet), ("blend", BlendSettings, _blend),
                                     ("footfix", FootfixSettings, _footfix),
                                     ("style", StyleSettings, _style),
-                                    ("motion-style", MotionStyleSettings, _motion_style)):
+                                    ("motion-style", MotionStyleSettings, _motion_style),
+                                    ("match", MatchSettings, _match)):
         q = sub.add_parser(name, help=settings.__doc__.splitlines()[0], description=settings.__doc__)
         add_options(q, settings)
         q.set_defaults(handler=handler)
@@ -68,4 +71,14 @@ def _motion_style(args: argparse.Namespace) -> int:
     print(f"trained in {model.meta['train_seconds']} s; held-out segment accuracy {m['segment_accuracy']:.3f}, "
           f"dance accuracy {m['dance_accuracy']:.3f}")
     print(write_motion_style_card(settings.out))
+    return 0
+
+
+def _match(args: argparse.Namespace) -> int:
+    settings = from_args(MatchSettings, args)
+    f = train_match(settings)
+    r, st, en = f["retrieval"], f["style_transfer"], f["style_transfer_energy"]
+    print(f"{f['held_out']} songs: retrieval top-1 {r['top1']:.3f}, top-5 {r['top5']:.3f} of {r['candidates']}; "
+          f"own style of the best bar {st['style_mean']:.3f} (energy matching {en['style_mean']:.3f}), mean of styles")
+    print(f"wrote {settings.out}")
     return 0
