@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..library.analysis import UNSURE
 from ..library.build import build_library
 from ..library.store import MotionLibrary
 
@@ -19,9 +20,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("folder", type=Path, help="folder of .bvh clips (subfolders, or a manifest.csv, name styles)")
     b.add_argument("--force", action="store_true", help="build again even when this content was built before")
     b.set_defaults(handler=_cmd_build)
-
-
-UNSURE = 0.25  # a clip whose tempo or meter scores less than this much better than the next reading is named
 
 
 def _cmd_build(args: argparse.Namespace) -> int:

@@ -30,7 +30,7 @@ import numpy as np
 from ..bvh import write_bvh
 from ..data.build import PairedSequence
 from ..data.dance_with_melody import read_manifest
-from ..library.analysis import analyze_clip
+from ..library.analysis import UNSURE, analyze_clip
 from ..library.build import build_library
 from ..library.choreography import LONG_RUN_BARS, choreograph
 from ..library.store import MotionLibrary
@@ -133,7 +133,7 @@ def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleto
         downs = np.flatnonzero(np.isin(beats[span], music.downbeat_times - offset))
         song_meter = int(np.median(np.diff(downs))) if len(downs) > 1 else 0
         row = {"seq": p.seq, "style": p.style, "song_bpm": round(song_bpm, 1), "song_meter": song_meter}
-        for hint, style in (("motion", ""), ("style", p.style)):
+        for hint, style in (("from_motion", ""), ("with_style", p.style)):
             a = analyze_clip(motion, style)
             row[hint] = {"bpm": round(a.tempo_bpm, 1), "meter": a.meter, "confidence": round(a.confidence, 3),
                          "meter_right": bool(a.meter == song_meter),
@@ -144,9 +144,12 @@ def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleto
         return {hint: {"meter_right": float(np.mean([r[hint]["meter_right"] for r in rows])),
                        "tempo_right": float(np.mean([r[hint]["tempo_right"] for r in rows])),
                        "both_right": float(np.mean([r[hint]["meter_right"] and r[hint]["tempo_right"]
-                                                    for r in rows]))} for hint in ("motion", "style")}
+                                                    for r in rows]))} for hint in ("from_motion", "with_style")}
 
+    wrong = [r["from_motion"] for r in clips if not (r["from_motion"]["meter_right"]
+                                                       and r["from_motion"]["tempo_right"])]
     return {"clips": len(clips), "all": shares(clips), "test_clips": sum(r["seq"] in test for r in clips),
+            "unsure_of_wrong": float(np.mean([w["confidence"] < UNSURE for w in wrong])) if wrong else 0.0,
             "test": shares([r for r in clips if r["seq"] in test]), "per_clip": clips}
 
 
@@ -170,11 +173,13 @@ def library_note(table: dict[str, dict]) -> str:
     analysis = table.get("library", {}).get("clip_analysis")
     if analysis:
         a, t = analysis["all"], analysis["test"]
+        m, w = "from_motion", "with_style"
         out += (f"\nClip analysis from the motion alone ({analysis['clips']} Dance with Melody dances against their "
                 f"songs' beats; test split's {analysis['test_clips']} in brackets): meter right "
-                f"{a['motion']['meter_right']:.0%} ({t['motion']['meter_right']:.0%}), tempo within "
-                f"{TEMPO_TOLERANCE:.0%} of the song's or its half or double {a['motion']['tempo_right']:.0%} "
-                f"({t['motion']['tempo_right']:.0%}); with the style's meter: meter {a['style']['meter_right']:.0%} "
-                f"({t['style']['meter_right']:.0%}), tempo {a['style']['tempo_right']:.0%} "
-                f"({t['style']['tempo_right']:.0%}). Per clip and per dance in comparison.json.\n")
+                f"{a[m]['meter_right']:.0%} ({t[m]['meter_right']:.0%}), tempo within "
+                f"{TEMPO_TOLERANCE:.0%} of the song's or its half or double {a[m]['tempo_right']:.0%} "
+                f"({t[m]['tempo_right']:.0%}); with the style's meter: meter {a[w]['meter_right']:.0%} "
+                f"({t[w]['meter_right']:.0%}), tempo {a[w]['tempo_right']:.0%} ({t[w]['tempo_right']:.0%}); of the "
+                f"clips read wrong from the motion alone, {analysis['unsure_of_wrong']:.0%} are named unsure by "
+                f"`library build` (confidence under {UNSURE:g}). Per clip and per dance in comparison.json.\n")
     return out
