@@ -45,8 +45,9 @@ def _names_as_they_are() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:  # the command itself, on the terminal's streams (not a caller's, e.g. a test's capture)
+        _names_as_they_are()
     argv = sys.argv[1:] if argv is None else argv
-    _names_as_they_are()
     args = build_parser(argv).parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminate)
