@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancenet_core.evaluation.motion_style import DEFAULT_WEIGHTS, MotionStyleModel, motion_input
+from dancenet_core.evaluation.motion_style import MotionStyleModel, motion_input
 from dancenet_core.motion import Motion
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, Skeleton
 from dancenet_core.training.motion_style import Dance, score_dances, train_motion_style_net
@@ -83,7 +83,6 @@ def test_tiny_model_tells_two_synthetic_styles_apart(tmp_path: Path) -> None:
     assert result["dance_accuracy"] == 1.0
 
 
-@pytest.mark.skipif(not DEFAULT_WEIGHTS.is_file(), reason="motion style weights not shipped")
 def test_shipped_model_classifies_a_real_held_out_dance(shared_data: Path, tmp_path: Path) -> None:
     from dancenet_core.data.build import build_sequence
     from dancenet_core.data.dance_with_melody import read_manifest
