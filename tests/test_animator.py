@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import soundfile as sf
+from made_up import click_song
 
 from dancenet_core.bvh import read_bvh
 from dancenet_core.cli import main as cli_main
@@ -22,11 +22,7 @@ def song(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     folder = tmp_path_factory.mktemp("song")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("DANCENET_CACHE", str(folder / "cache"))
-        sr = 22050
-        t = np.arange(int(12.0 * sr)) / sr
-        y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / 110) < 0.01)
-        sf.write(folder / "clicks.wav", y.astype(np.float32), sr)
-        yield folder / "clicks.wav"
+        yield click_song(folder / "clicks.wav", 12.0, 110)
 
 
 def generate(song: Path, out: Path, *extra: str) -> Motion:

@@ -18,8 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-import soundfile as sf
-from made_up import small_motion
+from made_up import click_song, small_motion
 
 from dancenet_core.atomic import NAME_MAX_BYTES, atomic_path, fit_name, write_text
 from dancenet_core.bvh import write_bvh
@@ -32,13 +31,6 @@ from dancenet_core.outputs import MAX_STEM_BYTES, safe_stem
 from dancenet_core.request import DanceRequest
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _song(path: Path, seconds: float = 4.0, rate: int = 22050) -> Path:
-    """A click track at 120 BPM over a quiet tone."""
-    t = np.arange(int(seconds * rate)) / rate
-    sf.write(path, (0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 0.5) < 0.01)).astype(np.float32), rate)
-    return path
 
 
 def _dance(seed: int) -> Motion:
@@ -93,7 +85,7 @@ sys.exit(main(sys.argv[3:]))
 
 @pytest.mark.parametrize("overwrite", [False, True], ids=["no-overwrite", "overwrite"])
 def test_concurrent_runs_into_one_folder_leave_one_consistent_set(tmp_path: Path, overwrite: bool) -> None:
-    song, out, ready, n = _song(tmp_path / "song.wav"), tmp_path / "out", tmp_path / "ready", 4
+    song, out, ready, n = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out", tmp_path / "ready", 4
     ready.mkdir()
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     runs = [subprocess.Popen([sys.executable, "-c", _RACER, str(ready), str(n), "generate", str(song), "-o",
@@ -123,7 +115,7 @@ def test_unwritable_cache_carries_on_with_a_one_line_notice(tmp_path: Path, caps
                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     from dancenet_core.music.features import analyze_music
 
-    song, blocker = _song(tmp_path / "song.wav"), tmp_path / "a_file"
+    song, blocker = click_song(tmp_path / "song.wav", 4.0), tmp_path / "a_file"
     blocker.write_text("not a folder")
     monkeypatch.setenv("DANCENET_CACHE", str(blocker))  # as DANCENET_CACHE=/dev/null: no folder can be made
     capsys.readouterr()
@@ -150,7 +142,7 @@ def test_fitted_names_fit_in_bytes_and_stay_distinct(limit: int) -> None:
 @pytest.mark.parametrize("name", ["a" * 245, "日" * 80, "é" * 120], ids=["245-ascii", "240-bytes-cjk", "accents"])
 def test_a_long_song_name_gives_short_recognisable_outputs(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                            fake_generate: None, name: str) -> None:
-    song, out = _song(tmp_path / f"{name}.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / f"{name}.wav", 4.0), tmp_path / "out"
     code, err = _cli(["generate", str(song), "-o", str(out), "--takes", "1"], capsys)
     assert code == 0, err
     names = sorted(p.name for p in out.iterdir())
@@ -189,7 +181,7 @@ def test_non_latin_titles_get_their_own_outputs(tmp_path: Path, capsys: pytest.C
                                                 fake_generate: None) -> None:
     out = tmp_path / "out"
     for title in ("日本語", "中文歌", "café"):
-        code, err = _cli(["generate", str(_song(tmp_path / f"{title}.ogg")), "-o", str(out)], capsys)
+        code, err = _cli(["generate", str(click_song(tmp_path / f"{title}.ogg", 4.0)), "-o", str(out)], capsys)
         assert code == 0, err
     names = {p.name for p in out.iterdir()}
     assert {"日本語.bvh", "中文歌.bvh", "café.bvh", "日本語.json", "中文歌.json", "café.json"} <= names
@@ -222,7 +214,7 @@ def test_the_demo_runs_twice(tmp_path: Path, capsys: pytest.CaptureFixture, fake
 
 def test_a_dangling_link_at_an_output_name_is_not_replaced(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                            fake_generate: None) -> None:
-    song, out = _song(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
     out.mkdir()
     (out / "song.bvh").symlink_to(tmp_path / "nowhere.bvh")
     code, err = _cli(["generate", str(song), "-o", str(out)], capsys)
@@ -240,7 +232,7 @@ def _dead_pid() -> int:
 @pytest.mark.skipif(os.name != "posix", reason="leftovers are told by their process id on POSIX")
 def test_a_killed_runs_temporary_files_go_on_the_next_run(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                           fake_generate: None) -> None:
-    song, out = _song(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
     out.mkdir()
     dead = [out / f".song.{_dead_pid()}.0123abcd.tmp{s}" for s in (".bvh", ".npz", ".mp4")]
     live = out / f".other.{os.getpid()}.0123abcd.tmp.bvh"  # a run still writing
@@ -266,7 +258,7 @@ def test_write_errors_say_what_happened(tmp_path: Path) -> None:
 
 def test_start_minus_zero_is_written_as_zero(tmp_path: Path, capsys: pytest.CaptureFixture,
                                              fake_generate: None) -> None:
-    song, out = _song(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
     code, err = _cli(["generate", str(song), "-o", str(out), "--start", "-0.0"], capsys)
     assert code == 0, err
     text = (out / "song.json").read_text()
@@ -276,7 +268,7 @@ def test_start_minus_zero_is_written_as_zero(tmp_path: Path, capsys: pytest.Capt
 def test_a_losing_run_keeps_the_winners_files_and_leaves_nothing(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """In one process: a run whose outputs appear while it dances ends with one line, the others' files kept."""
-    song, out = _song(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
 
     def meanwhile(request: DanceRequest, **kwargs: Any) -> GenerationResult:
         (out / "song.npz").write_text("another run's")

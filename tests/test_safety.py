@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 import torch
-from made_up import hangup_as_a_terminal_sends_it, small_motion
+from made_up import click_song, hangup_as_a_terminal_sends_it, small_motion
 
 from dancenet_core import generate
 from dancenet_core.bvh import write_bvh
@@ -118,14 +118,6 @@ def test_bundle_save_round_trip_is_plain_and_exact(tmp_path: Path) -> None:
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _wav(path: Path, seconds: float = 4.0, rate: int = 22050, subtype: str = "PCM_16") -> Path:
-    """A click track at 120 BPM over a quiet tone."""
-    t = np.arange(int(seconds * rate)) / rate
-    y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 0.5) < 0.01)
-    sf.write(path, y.astype(np.float32), rate, subtype=subtype)
-    return path
-
-
 def _cli(argv: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str]:
     code = cli_main(argv)
     err = capsys.readouterr().err.strip()
@@ -198,7 +190,7 @@ def no_analysis(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_generate_refuses_to_replace_outputs_unless_asked(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                           no_analysis: None) -> None:
-    song, out = _wav(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
     out.mkdir()
     (out / "song.json").write_text("mine")
     code, err = _cli(["generate", str(song), "-o", str(out)], capsys)
@@ -229,7 +221,7 @@ def test_generate_refuses_to_replace_outputs_unless_asked(tmp_path: Path, capsys
 ])
 def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                     no_analysis: None, extra: list[str], message: str) -> None:
-    song, out = _wav(tmp_path / "song.wav"), tmp_path / "out"
+    song, out = click_song(tmp_path / "song.wav", 4.0), tmp_path / "out"
     (tmp_path / "a_file").write_text("x")
     files = {"RANDOM": np.random.default_rng(1).bytes(1000), "EMPTY": b"", "PICKLE": pickle.dumps({"a": 1})}
     for key, content in files.items():
@@ -257,7 +249,7 @@ def test_damaged_cache_entry_is_recomputed_with_a_notice(tmp_path: Path, capsys:
                                                          damage: str) -> None:
     from dancenet_core.music.features import MusicAnalysis, analyze_music
 
-    song, cache = _wav(tmp_path / "song.wav"), tmp_path / "cache"
+    song, cache = click_song(tmp_path / "song.wav", 4.0), tmp_path / "cache"
     first = analyze_music(song, cache_dir=cache, workers=1)
     (entry,) = cache.iterdir()
     data = entry.read_bytes()
@@ -328,7 +320,7 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGKILL],
                          ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])  # SIGHUP: the terminal closed (issue 26)
 def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: signal.Signals) -> None:
-    song = _wav(tmp_path / "long.wav", seconds=150.0, rate=11025)
+    song = click_song(tmp_path / "long.wav", 150.0, rate=11025)
     env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
     with (tmp_path / "stderr").open("w") as log:  # a file, not a pipe: a worker left behind would hold a pipe open
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "analyze", str(song), "--no-cache"],

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from doubles import CALLS, convention_rest, make_fake_generator, mixamo_rest, synthetic_motion, write_song
+from made_up import click_song
 from scene_helpers import bpy, build_armature, fk_world, panel_screenshot, snapshot, world_heads
 
 
@@ -125,19 +126,10 @@ def real_scene(addon, tmp_path, monkeypatch):
     return bpy.context.scene
 
 
-def click_song(path: Path, seconds: float = 8.0, bpm: float = 110.0) -> Path:
-    import soundfile as sf
-
-    sr = 22050
-    t = np.arange(int(seconds * sr)) / sr
-    sf.write(path, (0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / bpm) < 0.01)).astype(np.float32), sr)
-    return path
-
-
 def test_shipped_model_dances_the_heard_part_of_a_trimmed_strip(real_scene, tmp_path):
     sc = real_scene
     sc.sequence_editor_create()
-    strip = sc.sequence_editor.strips.new_sound("song", str(click_song(tmp_path / "clicks.wav")), 1, 30)
+    strip = sc.sequence_editor.strips.new_sound("song", str(click_song(tmp_path / "clicks.wav", 8.0, 110)), 1, 30)
     strip.frame_offset_start, strip.frame_offset_end = 48, 24  # heard: song 2 s to 7 s, frames 78-197
     sc.sequence_editor.active_strip = strip
     sc.dancenet.music_source, sc.dancenet.seed = "STRIP", 4
@@ -287,7 +279,7 @@ def test_shipped_model_root_bone_take_continued_without_a_pop(real_scene, tmp_pa
 
     sc = real_scene
     props = sc.dancenet
-    props.music_file, props.seed, props.root_motion = str(click_song(tmp_path / "clicks.wav")), 2, "root-bone"
+    props.music_file, props.seed, props.root_motion = str(click_song(tmp_path / "clicks.wav", 8.0, 110)), 2, "root-bone"
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     rig = bpy.data.objects["DanceNet Dancer"]
     first_take = rig.animation_data.action
@@ -527,7 +519,7 @@ def test_every_convention_is_mapped_automatically_and_lands(scene, addon, song, 
     assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
     error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
     LANDING[convention] = error
-    assert error < 0.05, error
+    assert error < 0.025, error  # docs/animators.md: within 1.4-2.4% of body height
 
 
 def renamed(rows, names: dict[str, str]) -> list:
@@ -640,12 +632,14 @@ _SHAPE_ONLY = {
                          "left_shoulder": "왼위팔비틀림", "right_elbow": "오른손비틀림", "left_hip": "왼다리비틀림",
                          "spine1": "척추2"}}),
 }  # fmt: skip
+SHAPE_ONLY_LANDING = {"bone_001 T-pose": 0.018, "한국어 A-pose": 0.033}  # docs/animators.md: 1.7% and 3.2%
 
 
 @pytest.mark.parametrize("rig_kind", list(_SHAPE_ONLY))
 def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon, song, rig_kind):
     """Generate Dance (Auto) on a humanoid whose bone names match no map: every required joint comes from the
-    shape, the panel says so, and feet, hands and head land within 5% of body height of the dance."""
+    shape, the panel says so, and feet, hands and head land within 1.7% (T-pose) and 3.2% (A-pose) of body height
+    of the dance (docs/animators.md)."""
     names, layout = _SHAPE_ONLY[rig_kind]
     smplx = addon.bonemap.load_shipped("SMPLX").bones
     rows = convention_rest(smplx, names=names or None, **layout)
@@ -670,7 +664,7 @@ def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon,
     assert {j: mapping[j] for j in addon.shapemap.BODY_JOINTS} == {j: expected[j] for j in addon.shapemap.BODY_JOINTS}
     error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
     LANDING[f"shape only, {rig_kind}"] = error
-    assert error < 0.05, error
+    assert error < SHAPE_ONLY_LANDING[rig_kind], error
 
 
 def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, song):
@@ -720,7 +714,7 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
 
 def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsys):
     """The real dance on a DAZ-named A-pose rig with twist bones and its own proportions: Auto maps it and
-    the feet, hands and head land within 5% of its height of where the dance puts them."""
+    the feet, hands and head land within 2.5% of its height of where the dance puts them (2.0% measured)."""
     from blender_addon import bonemap, takes
     from dancenet_core.engines.dancenet import load_bundle
 
@@ -732,14 +726,14 @@ def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsy
                            skeleton=load_bundle().skeleton)
     rig = build_armature("Genesis", rows, mixamo_import=False)
     props = real_scene.dancenet
-    props.music_file, props.target, props.armature = str(click_song(tmp_path / "clicks.wav")), "EXISTING", rig
+    props.music_file, props.target, props.armature = str(click_song(tmp_path / "clicks.wav", 8.0, 110)), "EXISTING", rig
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
     mapping, _ = bonemap.resolve(bonemap.detect([b.name for b in rig.data.bones], rig.name), [b.name for b in
                                                                                             rig.data.bones], rig.name)
     dance = takes.take_motion(rig.animation_data.action).resampled(24)
     error = landing_error(rig, mapping, dance, real_scene.frame_start)
     LANDING["DAZ, shipped model"] = error
-    assert error < 0.05, error
+    assert error < 0.025, error
     with capsys.disabled():
         print("\nlanding error (share of rig height): " + ", ".join(f"{k} {v:.4f}" for k, v in LANDING.items()))
 

@@ -7,24 +7,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
-import soundfile as sf
+from made_up import click_song
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _song(path: Path, seconds: float, bpm: float) -> Path:
-    sr = 22050
-    t = np.arange(int(seconds * sr)) / sr
-    y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * (np.mod(t, 60.0 / bpm) < 0.01)
-    sf.write(path, y.astype(np.float32), sr)
-    return path
-
-
 def test_batch_mode_dances_two_songs_with_the_shipped_model(tmp_path: Path) -> None:
     pytest.importorskip("bpy")
-    songs = [_song(tmp_path / "slow waltz.wav", 6.0, 90), _song(tmp_path / "quick.wav", 5.0, 128)]
+    songs = [click_song(tmp_path / "slow waltz.wav", 6.0, 90), click_song(tmp_path / "quick.wav", 5.0, 128)]
     user = tmp_path / "blender-user"
     env = os.environ | {
         "HOME": str(tmp_path / "home"),

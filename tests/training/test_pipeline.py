@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import soundfile as sf
 import torch
+from made_up import click_song
 
 from dancenet_core.cli import main as cli_main
 from dancenet_core.data.build import PairedSequence
+from dancenet_core.data.windows import WindowSampler
 from dancenet_core.generate import generate_dance
 from dancenet_core.motion import Motion
 from dancenet_core.nets.bundle import DanceNetBundle
@@ -22,6 +23,7 @@ from dancenet_core.request import DanceRequest
 from dancenet_core.skeleton import BODY_JOINTS
 from dancenet_core.training.configs import TrainSettings
 from dancenet_core.training.dancenet import train
+from dancenet_core.training.tensor_windows import TensorWindows
 
 
 def _pair(seed: int, style: str, frames: int = 300) -> PairedSequence:
@@ -68,27 +70,40 @@ def test_training_resumes_from_its_plain_checkpoint(tmp_path: Path, capsys: pyte
 
 
 def test_a_resumed_run_is_the_same_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Stopped right after its checkpoint and resumed, a run ends with the weights an uninterrupted run has, on
-    this machine's device (on a GPU the windows and own draws come from the CUDA generator, which the checkpoint
-    carries too)."""
+    """Stopped right after its checkpoint and resumed, a run draws the windows (with their noise) an
+    uninterrupted run draws, on this machine's device: on a GPU they come from the CUDA generator, which the
+    checkpoint carries too. On the CPU the weights come out the same too (a GPU's backward pass is not bitwise
+    reproducible even run to run)."""
     from dancenet_core.training import dancenet
 
-    settings = TrainSettings(minutes=5, steps=4, batch=2, window=100, log_every=1, checkpoint_every=2,
-                             own_inputs=0.3)
-    whole = train(replace(settings, out=tmp_path / "whole"), *_tiny_dataset())
+    drawn: list[torch.Tensor] = []
+    sampler = TensorWindows if torch.cuda.is_available() else WindowSampler
+    original = sampler.batch
+
+    def recorded(self: object, *args: object, **kwargs: object) -> object:
+        b = original(self, *args, **kwargs)
+        if len(b.motion) == settings.batch:  # a training batch, not the held-out windows
+            drawn.append(torch.as_tensor(b.motion).cpu().clone())
+        return b
 
     def saved_then_stopped(obj: dict, path: Path) -> None:
         dancenet_save(obj, path)
         raise KeyboardInterrupt
 
+    monkeypatch.setattr(sampler, "batch", recorded)
+    settings = TrainSettings(minutes=5, steps=4, batch=2, window=100, log_every=1, checkpoint_every=2,
+                             own_inputs=0.3)
+    whole = train(replace(settings, out=tmp_path / "whole"), *_tiny_dataset())
     dancenet_save = dancenet.save_weights
     with monkeypatch.context() as patched:
         patched.setattr(dancenet, "save_weights", saved_then_stopped)
         with pytest.raises(KeyboardInterrupt):
             train(replace(settings, out=tmp_path / "parts"), *_tiny_dataset())
     parts = train(replace(settings, out=tmp_path / "parts", resume=True), *_tiny_dataset())
-    a, b = DanceNetBundle.load(whole).model.state_dict(), DanceNetBundle.load(parts).model.state_dict()
-    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert len(drawn) == 8 and all(torch.equal(a, b) for a, b in zip(drawn[:4], drawn[4:], strict=True))
+    if not torch.cuda.is_available():
+        a, b = DanceNetBundle.load(whole).model.state_dict(), DanceNetBundle.load(parts).model.state_dict()
+        assert all(torch.equal(a[k], b[k]) for k in a)
 
 
 @pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
@@ -109,23 +124,15 @@ def test_the_training_log_is_closed_when_training_stops(tmp_path: Path, monkeypa
 
 
 @pytest.fixture(scope="module")
-def click_song(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    sr = 22050
-    t = np.arange(int(8.0 * sr)) / sr
-    y = 0.1 * np.sin(2 * np.pi * 220 * t)
-    for beat in np.arange(0.5, 8.0, 0.5):
-        i = int(beat * sr)
-        y[i : i + 400] += np.hanning(800)[400:] * np.sin(2 * np.pi * 1000 * t[:400])
-    path = tmp_path_factory.mktemp("song") / "clicks.wav"
-    sf.write(path, y.astype(np.float32), sr)
-    return path
+def clicks(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return click_song(tmp_path_factory.mktemp("song") / "clicks.wav", 8.0)
 
 
-def test_training_writes_what_generation_runs(tiny_weights: Path, click_song: Path) -> None:
+def test_training_writes_what_generation_runs(tiny_weights: Path, clicks: Path) -> None:
     """Beside its checkpoint, training writes the plain arrays generation runs without torch: the same dance."""
     kw = dict(style="waltz", seed=3, footfix=False)
-    a = generate_dance(DanceRequest(click_song, weights=str(tiny_weights.with_suffix(".npz")), **kw))
-    b = generate_dance(DanceRequest(click_song, weights=str(tiny_weights), **kw))
+    a = generate_dance(DanceRequest(clicks, weights=str(tiny_weights.with_suffix(".npz")), **kw))
+    b = generate_dance(DanceRequest(clicks, weights=str(tiny_weights), **kw))
     np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)
 
 
@@ -135,11 +142,11 @@ def test_bundle_round_trip(tiny_weights: Path) -> None:
     assert b.info["train_sequences"] == ["SEQ_0", "SEQ_1", "SEQ_2", "SEQ_3"]
 
 
-def test_generate_is_seeded_and_song_length(tiny_weights: Path, click_song: Path) -> None:
+def test_generate_is_seeded_and_song_length(tiny_weights: Path, clicks: Path) -> None:
     kw = dict(style="waltz", temperature=0.5, takes=2, footfix=False, weights=str(tiny_weights))
-    a = generate_dance(DanceRequest(click_song, seed=3, **kw))
-    b = generate_dance(DanceRequest(click_song, seed=3, **kw))
-    c = generate_dance(DanceRequest(click_song, seed=4, **kw))
+    a = generate_dance(DanceRequest(clicks, seed=3, **kw))
+    b = generate_dance(DanceRequest(clicks, seed=3, **kw))
+    c = generate_dance(DanceRequest(clicks, seed=4, **kw))
     assert len(a.motions) == 2
     assert a.motions[0].num_frames == round(a.duration_s * 25)
     np.testing.assert_array_equal(a.motions[0].rotations, b.motions[0].rotations)
@@ -149,10 +156,10 @@ def test_generate_is_seeded_and_song_length(tiny_weights: Path, click_song: Path
     assert len(a.beat_times) > 5
 
 
-def test_cli_generate_writes_files_and_same_seed_same_bytes(tiny_weights: Path, click_song: Path,
+def test_cli_generate_writes_files_and_same_seed_same_bytes(tiny_weights: Path, clicks: Path,
                                                           tmp_path: Path) -> None:
     for out in ("a", "b"):
-        rc = cli_main(["generate", str(click_song), "-o", str(tmp_path / out), "--style", "rumba", "--seed", "9",
+        rc = cli_main(["generate", str(clicks), "-o", str(tmp_path / out), "--style", "rumba", "--seed", "9",
                        "--no-footfix", "--weights", str(tiny_weights)])
         assert rc == 0
     assert (tmp_path / "a" / "clicks.bvh").read_bytes() == (tmp_path / "b" / "clicks.bvh").read_bytes()
