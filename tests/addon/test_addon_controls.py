@@ -190,4 +190,4 @@ def test_auto_rig_pro_controls_are_keyed_and_drive_the_deform_bones(scene, addon
     assert not any(c.mute for pb in rig.pose.bones for c in pb.constraints)
     error = feet_error(rig, {j: deform[j] for j in LEGS}, motion, 1)
     print(f"\nAuto-Rig Pro names: feet land within {error:.4f} of the rig's height")
-    assert error < 0.05, error
+    assert error < 0.01, error  # 0.4% measured

@@ -161,7 +161,7 @@ def test_a_rig_assigned_by_the_vrm_addon_dances_as_assigned(scene, addon, song, 
     assert mapping == {j: names[j] for j in VRM_BONES}
     error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
     print(f"VRM {version}: worst landing error {error:.4f} of the height")
-    assert error < 0.05
+    assert error < 0.023  # docs/animators.md: within 2.2%
 
 
 def mmd_rows(english: bool) -> tuple[list, dict[str, str]]:
@@ -223,7 +223,7 @@ def test_an_mmd_rig_dances_under_auto_with_its_leg_ik_muted(scene, addon, song, 
     head = landing_error(rig, {j: mapping[j] for j in ("pelvis", "head")}, motion, scene.frame_start)
     print(f"MMD ({'English' if english else 'Japanese'} names): feet and hands land within {error:.4f} of the "
           f"height, the head {head:.4f} (the rig's spine starts at its hips: no bone for our pelvis-spine1 step)")
-    assert error < 0.05
+    assert error < 0.032 and head < 0.052  # docs/animators.md: within 3.1%, the head 5.1%
 
 
 def test_saved_bone_maps_keep_every_name_apart(scene, addon, tmp_path, monkeypatch):
