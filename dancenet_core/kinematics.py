@@ -19,20 +19,23 @@ def fk_numpy(
     rotvecs: np.ndarray,
     root_positions: np.ndarray,
     with_end_sites: bool = False,
+    joints: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World joint positions [..., J, 3] and world rotation matrices [..., J, 3, 3].
 
     `rotvecs` is [..., J, 3]; `root_positions` is [..., 3]. With `with_end_sites`, also returns the
-    end-site positions [..., E, 3].
+    end-site positions [..., E, 3]. `joints`: only the first this many joints (joints come after their parents,
+    so the body's first 22 need none of the hands': a third of the work), without end sites.
     """
     rotvecs = np.asarray(rotvecs, dtype=np.float64)
     lead = rotvecs.shape[:-2]
-    nj = skeleton.num_joints
+    nj = skeleton.num_joints if joints is None else joints
+    rotvecs = rotvecs[..., :nj, :]
     local = Rotation.from_rotvec(rotvecs.reshape(-1, 3)).as_matrix().reshape(*lead, nj, 3, 3)
     world_r = np.empty_like(local)
     world_p = np.empty((*lead, nj, 3))
     offsets = skeleton.offsets
-    for j, p in enumerate(skeleton.parents):
+    for j, p in enumerate(skeleton.parents[:nj]):
         if p < 0:
             world_r[..., j, :, :] = local[..., j, :, :]
             world_p[..., j, :] = np.asarray(root_positions, dtype=np.float64) + offsets[j]

@@ -19,6 +19,7 @@ from ..music.features import MusicAnalysis
 from ..progress import StageProgress
 from ..request import DanceRequest
 from .choreography import choreograph
+from .match import MatchModel
 from .store import MotionLibrary, library_path, load_built, load_default
 
 # The style of a dance any clip may dance: what a dance from unnamed styles is called, and a style one may ask for
@@ -35,6 +36,12 @@ def _load(path: Path, key: Path) -> MotionLibrary:
 @lru_cache(maxsize=1)
 def _load_default() -> MotionLibrary:
     return load_default()
+
+
+@lru_cache(maxsize=1)
+def _load_match() -> MatchModel:
+    """The learned match of music and movement: what keeps a library without style labels to the song's style."""
+    return MatchModel.load()
 
 
 class LibraryEngine:
@@ -65,7 +72,8 @@ class LibraryEngine:
     def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
               should_cancel: Callable[[], bool]) -> Takes:
         """A figure per bar, time-warped to the song's beats (no foot model: the frames are real capture, and the
-        model, trained on DanceNet's dances, slid them more, 0.58 -> 0.69 of contact frames)."""
+        model, trained on DanceNet's dances, slid them more, 0.58 -> 0.69 of contact frames). A library whose clips
+        name no style is kept to the song's style by the learned match of music and movement (`match.py`)."""
         timings: dict[str, float] = {}
         t = time.perf_counter()
         library = self.library(request)
@@ -83,7 +91,7 @@ class LibraryEngine:
         start, end = request.part(analysis.duration_s)
         kept = _kept(request, library.fps, end - start)
         dances = choreograph(library, analysis, request.seed, start + (0.0 if kept is None else kept.duration), end,
-                             request.takes, chosen or None, kept=kept)
+                             request.takes, chosen or None, kept=kept, match=_load_match() if not styles else None)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
         motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]

@@ -19,6 +19,7 @@ vectors says how well the figure fits the bar. Weights are an `.npz` of plain ar
 from __future__ import annotations
 
 import json
+import weakref
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,7 @@ from scipy.ndimage import gaussian_filter1d
 from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError
+from ..kinematics import fk_numpy
 from ..music.features import BEAT_COL, CHROMA_COLS, DOWNBEAT_COL, ONSET_COL
 from ..music.features import FPS as MUSIC_FPS
 from ..skeleton import BODY_JOINTS, MIRROR_INDEX
@@ -181,8 +183,22 @@ class MatchModel:
 
 def library_frames(library: MotionLibrary) -> np.ndarray:
     """[N, FRAME_DIM]: `motion_frames` of every clip of the library, end to end as its frames are."""
-    return np.concatenate([motion_frames(library.clip(c).positions()[:, :BODY_JOINTS], library.fps)
-                           for c in range(library.num_clips)])
+    pos = fk_numpy(library.skeleton, library.rotations, library.root_positions, joints=BODY_JOINTS)[0]
+    edges = library.clip_starts
+    return np.concatenate([motion_frames(pos[a:b], library.fps) for a, b in zip(edges[:-1], edges[1:], strict=True)])
+
+
+_FRAMES: dict[int, np.ndarray] = {}
+
+
+def cached_frames(library: MotionLibrary) -> np.ndarray:
+    """`library_frames`, kept while the library lives: the engine keeps its library loaded, so every dance after
+    the first skips the forward kinematics of the whole library."""
+    key = id(library)
+    if key not in _FRAMES:
+        _FRAMES[key] = library_frames(library)
+        weakref.finalize(library, _FRAMES.pop, key, None)
+    return _FRAMES[key]
 
 
 class FigureMatch:
@@ -192,7 +208,7 @@ class FigureMatch:
     def __init__(self, model: MatchModel, library: MotionLibrary, features: np.ndarray,
                  bar_beats: list[np.ndarray]) -> None:
         self.model, self.library = model, library
-        self.frames = library_frames(library)
+        self.frames = cached_frames(library)
         self.music = model.embed_music(music_bars(features, bar_beats, model.context))
         self._motion: dict[tuple[int, bytes, bytes], np.ndarray] = {}
 

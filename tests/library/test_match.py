@@ -1,0 +1,160 @@
+"""The learned match of music and movement (library/match.py): its bar features, its weights file, the plan's use of
+it and the library engine's choice of when to use it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from made_up import click_song
+from scipy.spatial.transform import Rotation
+from test_library import FPS, _cli, dancer, library_of, song
+
+from dancenet_core.bvh import write_bvh
+from dancenet_core.errors import DanceNetError
+from dancenet_core.library import engine
+from dancenet_core.library.choreography import Settings, choreograph
+from dancenet_core.library.match import (
+    SAMPLES,
+    FigureMatch,
+    MatchModel,
+    bar_points,
+    motion_bars,
+    motion_frames,
+    music_bars,
+)
+from dancenet_core.library.store import MotionLibrary
+from dancenet_core.skeleton import BODY_JOINTS
+
+
+@pytest.fixture(scope="module")
+def library() -> MotionLibrary:
+    return library_of(*[(f"clip{k}", dancer(40, bpm, amplitude=0.3 + 0.1 * k, phase=k))
+                        for k, bpm in enumerate((100, 110, 120, 104))])
+
+
+def test_motion_features_do_not_depend_on_where_the_dancer_stands_or_faces() -> None:
+    pos = dancer(8, 110).positions()[:, :BODY_JOINTS]
+    turned = Rotation.from_euler("y", 70, degrees=True).apply(pos.reshape(-1, 3)).reshape(pos.shape)
+    turned += np.array([3.0, 0.0, -2.0])
+    a, b = motion_frames(pos, FPS), motion_frames(turned, FPS)
+    assert np.allclose(a, b, atol=1e-4)
+    moved = motion_frames(pos * np.array([1.0, 1.0, 1.5]), FPS)  # a different motion is read differently
+    assert not np.allclose(a, moved, atol=1e-2)
+
+
+def test_a_bars_points_are_spread_evenly_over_its_beats() -> None:
+    pts = bar_points(np.array([[0.0, 10.0, 30.0]]))[0]  # two beats: the first 10 frames long, the second 20
+    half = SAMPLES // 2
+    assert np.allclose(pts[:half], np.arange(half) * 10.0 / half)
+    assert np.allclose(pts[half:], 10.0 + np.arange(half) * 20.0 / half)
+
+
+def test_a_bar_of_music_reads_its_neighbours() -> None:
+    music = song(20, 120)
+    bars = [music.beat_times[k : k + 5] for k in range(0, 24, 4)]
+    alone, wide = music_bars(music.features, bars, 0), music_bars(music.features, bars, 1)
+    d = alone.shape[1]
+    assert wide.shape == (len(bars), 3 * d)
+    assert np.array_equal(wide[2], np.concatenate([alone[1], alone[2], alone[3]]))
+    assert np.array_equal(wide[0, :d], alone[0])  # the song's first bar stands in for the one before it
+
+
+def _made_up_model(music_dim: int, motion_dim: int, seed: int = 0) -> MatchModel:
+    rng = np.random.default_rng(seed)
+
+    def layers(dim: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [(rng.normal(0, 0.1, (16, dim)).astype(np.float32), np.zeros(16, np.float32)),
+                (rng.normal(0, 0.3, (8, 16)).astype(np.float32), np.zeros(8, np.float32))]
+
+    return MatchModel(np.zeros(music_dim, np.float32), np.ones(music_dim, np.float32),
+                      np.zeros(motion_dim, np.float32), np.ones(motion_dim, np.float32),
+                      layers(music_dim), layers(motion_dim), {"context": 0})
+
+
+def test_weights_are_read_back_and_a_bad_file_is_one_line(tmp_path: Path) -> None:
+    model = _made_up_model(5, 7)
+    model.save(tmp_path / "m.npz")
+    back = MatchModel.load(tmp_path / "m.npz")
+    x = np.random.default_rng(1).normal(size=(4, 7)).astype(np.float32)
+    assert np.allclose(back.embed_motion(x), model.embed_motion(x), atol=2e-3)  # weights stored as float16
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(DanceNetError) as e:
+        MatchModel.load(tmp_path / "bad.npz")
+    assert "dancenet train match" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_the_shipped_weights_embed_a_song_and_a_dance() -> None:
+    model = MatchModel.load()
+    music = song(30, 110)
+    bars = [music.beat_times[k : k + 5] for k in range(0, 40, 4)]
+    em = model.embed_music(music_bars(music.features, bars, model.context))
+    frames = motion_frames(dancer(30, 110).positions()[:, :BODY_JOINTS], FPS)
+    beat_frames = np.array([(b - 0.3) * FPS + 5 for b in bars])
+    ed = model.embed_motion(motion_bars(frames, beat_frames, FPS))
+    assert em.shape == ed.shape == (10, model.meta["dim"])
+    assert np.allclose(np.linalg.norm(em, axis=1), 1.0, atol=1e-5)
+    assert np.allclose(np.linalg.norm(ed, axis=1), 1.0, atol=1e-5)
+    assert model.meta["figures"]["held_out"] == "test"  # the card's figures travel with the weights
+
+
+class _Prefers:
+    """A stand-in for the match that likes one clip's figures only."""
+
+    def __init__(self, library: MotionLibrary, clip: int) -> None:
+        self.library, self.clip = library, clip
+
+    def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        return np.where(self.library.beat_clip[starts] == self.clip, 1.0, -1.0)
+
+
+def test_the_plan_takes_the_figures_the_match_prefers(library: MotionLibrary, monkeypatch: pytest.MonkeyPatch
+                                                      ) -> None:
+    music = song(40, 110)
+    plain = choreograph(library, music, seed=0)[0]
+    assert len({f["clip"] for f in plain.report.figures}) > 1
+    monkeypatch.setattr("dancenet_core.library.choreography.FigureMatch", lambda *a: _Prefers(library, 2))
+    model = _made_up_model(1, 1)  # not read by the stand-in
+    matched = choreograph(library, music, seed=0, settings=Settings(match=20.0), match=model)[0]
+    assert {f["clip"] for f in matched.report.figures} == {"clip2"}
+
+
+def test_the_real_match_scores_every_figure(library: MotionLibrary) -> None:
+    model = MatchModel.load()
+    music = song(20, 110)
+    bars = [music.beat_times[k : k + 5] for k in range(0, 28, 4)]
+    fit = FigureMatch(model, library, music.features, bars)
+    starts = np.flatnonzero(library.downbeat)[:-4]
+    ratios = np.ones(len(starts))
+    s = fit.fit(3, starts, ratios, 4)
+    assert s.shape == (len(starts),) and np.all(np.abs(s) <= 1.0 + 1e-6) and np.ptp(s) > 0
+    assert np.array_equal(fit.fit(3, starts, ratios, 4), s)
+
+
+def test_the_engine_matches_a_library_without_style_labels_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                                  ) -> None:
+    """A folder of unsorted clips is danced with the shipped match (the real weights, end to end to the files); a
+    folder sorted by style is danced as before, without it."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    used = []
+    real = engine._load_match
+
+    def counted() -> MatchModel:
+        used.append(1)
+        return real()
+
+    monkeypatch.setattr(engine, "_load_match", counted)
+    wav = click_song(tmp_path / "song.wav", 12, 110, bar=4)
+    for name, sub in (("unsorted", ""), ("sorted", "salsa")):
+        folder = tmp_path / name / sub
+        folder.mkdir(parents=True)
+        for k, bpm in enumerate((100, 110, 120)):
+            write_bvh(folder / f"clip{k}.bvh", dancer(30, bpm, amplitude=0.3 + 0.1 * k, phase=k))
+        assert _cli("library", "build", str(tmp_path / name)) == 0
+        out = tmp_path / f"out_{name}"
+        assert _cli("generate", str(wav), "-o", str(out), "--engine", "library", "--library",
+                    str(tmp_path / name)) == 0
+        assert json.loads((out / "song.json").read_text())["takes_details"]
+        assert len(used) == 1  # the unsorted folder, not the sorted one
