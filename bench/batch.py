@@ -1,0 +1,128 @@
+"""`dancenet batch` throughput, printed as JSON: a catalog of songs made here (30 to 60 s each) danced from a cold
+music cache by one worker, by two (`--jobs 2`) and by a Ray cluster started on this machine with 2 CPUs
+(`--cluster ray --jobs 2`), each run a fresh command, as a user runs it (worker or Ray start-up included).
+Gives songs per minute, the ratios (jobs 2 over jobs 1, Ray over jobs 2: measured in the same run, as this
+machine is shared), each worker's peak resident memory (from batch.json), whether the three runs wrote the same
+bytes, and what the shared machine gave at the time: the load average, and how much more work two busy processes
+got done than one (before each round and after the last; 2.0 on two idle cores), the most --jobs 2 can gain.
+
+    .venv/bin/python bench/batch.py [--songs 20] [--repeats 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+RUNS = {"jobs_1": ["--jobs", "1"], "jobs_2": ["--jobs", "2"], "ray_2cpu": ["--cluster", "ray", "--jobs", "2"]}
+
+
+def make_songs(folder: Path, count: int, seed: int = 0) -> list[float]:
+    """`count` songs of 30 to 60 s: chords on a pulse at 90 to 140 BPM, with a little noise, each its own."""
+    import soundfile as sf
+
+    rng = np.random.default_rng(seed)
+    sr = 44100
+    lengths = []
+    for k in range(count):
+        seconds, bpm = float(rng.uniform(30, 60)), float(rng.uniform(90, 140))
+        t = np.arange(int(seconds * sr)) / sr
+        beat = 60.0 / bpm
+        root = 220 * 2 ** (np.floor(t / (4 * beat)) % 4 * rng.choice([3, 5, 7]) / 12)
+        pulse = 0.5 + 0.5 * np.exp(-(t % beat) / 0.05)
+        tone = sum(np.sin(2 * np.pi * root * r * t) for r in (1, 1.26, 1.5)) / 3
+        y = 0.4 * pulse * tone + 0.01 * rng.standard_normal(len(t))
+        sf.write(folder / f"song_{k:02d}.wav", y.astype(np.float32), sr)
+        lengths.append(seconds)
+    return lengths
+
+
+def run(songs: Path, out: Path, flags: list[str], scratch: Path) -> dict:
+    """One batch command from a cold music cache (numba's compiled code kept): its wall time and batch.json."""
+    env = os.environ | {"DANCENET_CACHE": str(scratch / f"cache-{out.name}")}
+    env.setdefault("NUMBA_CACHE_DIR", str(Path.home() / ".cache" / "dancenet" / "numba"))
+    t = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "dancenet_core.cli", "batch", str(songs), "-o", str(out), *flags],
+                          cwd=REPO, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(flags)} failed: {proc.stderr.strip().splitlines()[-1:]}")
+    rows = json.loads((out / "batch.json").read_text())["songs"]
+    return {"wall_s": round(wall, 2), "songs_per_minute": round(60 * len(rows) / wall, 2),
+            "done": sum(r["status"] == "done" for r in rows),
+            "worker_peak_memory_mb": max(r["peak_memory_mb"] for r in rows),
+            "song_seconds_median": round(float(np.median([r["seconds"] for r in rows])), 2)}
+
+
+SPIN = "i = 0\nwhile i < 20_000_000:\n    i += 1"
+
+
+def two_over_one() -> float:
+    """How much more work two busy processes get done than one, now (2.0 on two idle cores): the most `--jobs 2`
+    can gain over `--jobs 1` while other jobs share the machine."""
+    def rate(n: int) -> float:
+        t = time.perf_counter()
+        procs = [subprocess.Popen([sys.executable, "-c", SPIN]) for _ in range(n)]
+        for proc in procs:
+            proc.wait()
+        return n / (time.perf_counter() - t)
+
+    return round(rate(2) / rate(1), 3)
+
+
+def same_bytes(a: Path, b: Path) -> bool:
+    """Every BVH and npz of run `a` equal, byte for byte, to run `b`'s."""
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.suffix in (".bvh", ".npz"))
+    return bool(files) and all((a / f).read_bytes() == (b / f).read_bytes() for f in files)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--songs", type=int, default=20)
+    p.add_argument("--repeats", type=int, default=1, help="rounds of the three runs (the best of each is kept)")
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory(prefix="dancenet-bench-batch-") as tmp:
+        scratch = Path(tmp)
+        songs = scratch / "songs"
+        songs.mkdir()
+        lengths = make_songs(songs, args.songs)
+        # numba's kernels compiled (or loaded) once before the timed runs, which then share them
+        run(songs, scratch / "warm-up", ["--jobs", "1", "--end", "5"], scratch)
+        load_before = os.getloadavg()[0]
+        results: dict[str, list[dict]] = {name: [] for name in RUNS}
+        machine = []
+        for r in range(args.repeats):
+            machine.append(two_over_one())
+            for name, flags in RUNS.items():
+                results[name].append(run(songs, scratch / f"{name}-{r}", flags, scratch))
+        machine.append(two_over_one())
+        load_after = os.getloadavg()[0]
+        best = {name: max(runs, key=lambda x: x["songs_per_minute"]) for name, runs in results.items()}
+        identical = all(same_bytes(scratch / "jobs_1-0", scratch / f"{name}-0") for name in ("jobs_2", "ray_2cpu"))
+    throughput = {name: b["songs_per_minute"] for name, b in best.items()}
+    print(json.dumps({
+        "command": "bench/batch.py " + " ".join(sys.argv[1:]),
+        "machine": {"cpus": os.cpu_count(), "load_average_before": round(load_before, 2),
+                    "load_average_after": round(load_after, 2),
+                    "two_busy_processes_over_one": machine},
+        "songs": args.songs, "song_seconds_total": round(sum(lengths), 1),
+        "song_seconds_range": [round(min(lengths), 1), round(max(lengths), 1)],
+        "jobs_2_over_jobs_1": round(throughput["jobs_2"] / throughput["jobs_1"], 3),
+        "ray_over_jobs_2": round(throughput["ray_2cpu"] / throughput["jobs_2"], 3),
+        "same_bytes_in_every_run": identical,
+        "runs": best,
+        "all_runs": results,
+    }, indent=2))
+
+
+if __name__ == "__main__":
+    main()
