@@ -39,6 +39,7 @@ from ..data.build import with_mel_music
 from ..engines.dancenet import FOOT_CLEANUP
 from ..environment import default_data_dir
 from ..errors import DanceNetError
+from ..library.match import MatchModel
 from ..motion import Motion
 from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 from ..nets.variants import VARIANTS, music_features
@@ -318,17 +319,24 @@ def compare(args: argparse.Namespace) -> int:
                               test_pairs, beats, args.takes, temperature, footfix=True))
     if args.library or args.library_only:
         train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
-        for name, label, library in (
-                ("library", "Motion library engine (users' path: training dances as BVH, no music)",
-                 users_library(train_pairs, shipped.skeleton, fps)),
+        users = users_library(train_pairs, shipped.skeleton, fps)
+        for name, label, library, hide, match in (
+                ("library", "Motion library engine (users' path: training dances as BVH, no music)", users, False,
+                 None),
                 ("library_music", "Motion library engine, clips cut on their music's beats (upper bound)",
-                 music_library(train_pairs, data, shipped.skeleton, fps))):
+                 music_library(train_pairs, data, shipped.skeleton, fps), False, None),
+                ("library_unsorted", "Motion library engine, users' path, clips' styles hidden: energy alone", users,
+                 True, None),
+                ("library_unsorted_match", "Motion library engine, users' path, clips' styles hidden: learned match",
+                 users, True, MatchModel.load())):
             row = DanceSet(name, label)
-            row.dances, row.styles, row.beats_s, row.info = library_row(library, test_pairs, data, fps, args.takes)
+            row.dances, row.styles, row.beats_s, row.info = library_row(library, test_pairs, data, fps, args.takes,
+                                                                        hide, match)
             rows.append(row)
             print(f"  {name}: {len(row.dances)} dances", flush=True)
-        rows[-2].info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
-                                                       set(split["test"]))
+        users_row = next(r for r in rows if r.name == "library")
+        users_row.info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
+                                                        set(split["test"]))
     table = measure(rows, ref_feats, fps, style_net)
 
     args.out.mkdir(parents=True, exist_ok=True)

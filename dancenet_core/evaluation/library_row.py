@@ -33,11 +33,13 @@ from ..data.dance_with_melody import read_manifest
 from ..library.analysis import UNSURE, analyze_clip
 from ..library.build import build_library
 from ..library.choreography import LONG_RUN_BARS, choreograph
+from ..library.match import MatchModel
 from ..library.store import MotionLibrary
 from ..library.transitions import cut_window
 from ..music.features import analyze_music
 from ..representation import decode
 from ..skeleton import BODY_JOINTS, Skeleton
+from .style_share import hidden, own_style_seconds
 
 TEMPO_TOLERANCE = 0.08
 
@@ -67,10 +69,16 @@ def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -
     return library
 
 
-def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int
+def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int,
+                hide_styles: bool = False, match: MatchModel | None = None
                 ) -> tuple[list, list[str], list[np.ndarray], dict]:
     """Dances from `library` (take k with seed k) to every test sequence's song span, their styles and beats (dance
-    time), and the engine's own figures: per dance and over all."""
+    time), and the engine's own figures: per dance and over all. `hide_styles`: the library's clips danced without
+    their style labels (a folder of unsorted clips), `match` the plan's learned match of music and movement; the
+    share of frames from clips of the song's style is measured either way."""
+    style_of = dict(zip(library.names, library.styles, strict=True))
+    if hide_styles:
+        library = hidden(library)
     p99 = library.step_p99
     own = np.delete(library.step_ratios, library.clip_starts[:-1])
     seqs = {s.seq: s for s in read_manifest(data_dir)}
@@ -79,7 +87,7 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
         music = analyze_music(seqs[p.seq].audio)
         start = seqs[p.seq].music_offset_s
         for take in range(takes):
-            d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style)[0]
+            d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style, match=match)[0]
             pos = d.motion.positions()[:, :BODY_JOINTS]
             step = (np.linalg.norm(np.diff(pos, axis=0), axis=-1) / p99).max(axis=1)
             near = np.zeros(len(step), bool)
@@ -94,7 +102,8 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
             per_dance.append({"seq": p.seq, "take": take, **d.report.summary(), "window_step_over_p99": ratio,
                               "cuts_over": int(sum(r > 1.0 for r in d.report.cut_steps)),
                               "mean_figure_s": float(np.mean([f["song_s"][1] - f["song_s"][0] for f in figures])),
-                              "ratios": sorted({f["ratio"] for f in figures})})
+                              "ratios": sorted({f["ratio"] for f in figures}),
+                              "own_style_s": own_style_seconds(figures, style_of, p.style)})
     blended = np.concatenate(blended)
     info = {"library_min": round(library.duration_s / 60, 1), "long_run_bars": LONG_RUN_BARS,
             "long_run_share": float(np.mean([r["long_run_share"] for r in per_dance])),
@@ -107,7 +116,9 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
             "max_warp": float(max(r["max_warp"] for r in per_dance)),
             "mean_figure_s": float(np.mean([r["mean_figure_s"] for r in per_dance])),
             "clip_tempo_bpm": [round(float(t), 1) for t in library.tempo_bpm],
-            "clip_meter": library.meter.tolist(), "per_dance": per_dance}
+            "clip_meter": library.meter.tolist(), "styles_hidden": hide_styles, "match": match is not None,
+            "own_style_share": float(sum(r["own_style_s"][0] for r in per_dance)
+                                     / sum(r["own_style_s"][1] for r in per_dance)), "per_dance": per_dance}
     return dances, styles, beats, info
 
 
@@ -170,6 +181,14 @@ def library_note(table: dict[str, dict]) -> str:
                 f"{lib['capture_max_step_over_p99']:.2f}x), frames blended at cuts with a joint over it "
                 f"{lib['transition_frames_over_p99']:.1%} (the capture's own frames: "
                 f"{lib['capture_frames_over_p99']:.1%}); largest real-time warp {lib['max_warp']:.1%}.\n")
+    hidden_rows = {name: table[name] for name in ("library_unsorted", "library_unsorted_match") if name in table}
+    if hidden_rows:
+        out += ("\nThe users' library with its clips' styles hidden (a folder of unsorted clips): share of the dances' "
+                "frames from clips of the song's own style, " + "; ".join(
+                    f"{'learned match' if name.endswith('match') else 'energy matching alone'} "
+                    f"{row['own_style_share']:.1%}" for name, row in hidden_rows.items())
+                + (f" (with the labels and the song's style: {table['library']['own_style_share']:.1%})"
+                   if "library" in table else "") + ".\n")
     analysis = table.get("library", {}).get("clip_analysis")
     if analysis:
         a, t = analysis["all"], analysis["test"]

@@ -23,6 +23,12 @@ def hidden(library: MotionLibrary) -> MotionLibrary:
     return dataclasses.replace(library, styles=[""] * library.num_clips)
 
 
+def own_style_seconds(figures: list[dict], style_of: dict[str, str], style: str) -> tuple[float, float]:
+    """Seconds of a dance's figures (its report's rows) from clips of `style`, and of all its figures."""
+    spans = [(f["song_s"][1] - f["song_s"][0], style_of[f["clip"]]) for f in figures]
+    return sum(s for s, st in spans if st == style), sum(s for s, _ in spans)
+
+
 def own_style_share(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int,
                     match: MatchModel | None, settings: Settings = DEFAULT_SETTINGS) -> dict:
     """Dances (take k with seed k) from `library` with its labels hidden to each test sequence's song span: the share
@@ -40,9 +46,7 @@ def own_style_share(library: MotionLibrary, test: list[PairedSequence], data_dir
         for take in range(takes):
             d = choreograph(unlabelled, music, take, start, start + len(p.motion) / fps, settings=settings,
                             match=match)[0]
-            spans = [(f["song_s"][1] - f["song_s"][0], style_of[f["clip"]]) for f in d.report.figures]
-            own = sum(s for s, st in spans if st == p.style)
-            total = sum(s for s, _ in spans)
+            own, total = own_style_seconds(d.report.figures, style_of, p.style)
             own_s, total_s = own_s + own, total_s + total
             per_dance.append({"seq": p.seq, "style": p.style, "take": take, "share": round(own / total, 4)})
     styles = sorted({r["style"] for r in per_dance})

@@ -3,6 +3,7 @@ it and the library engine's choice of when to use it."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -158,3 +159,18 @@ def test_the_engine_matches_a_library_without_style_labels_only(tmp_path: Path, 
                     str(tmp_path / name)) == 0
         assert json.loads((out / "song.json").read_text())["takes_details"]
         assert len(used) == 1  # the unsorted folder, not the sorted one
+
+
+def test_the_own_style_share_counts_the_figures_seconds(library: MotionLibrary) -> None:
+    from dancenet_core.evaluation.library_row import library_note
+    from dancenet_core.evaluation.style_share import hidden, own_style_seconds
+
+    labelled = dataclasses.replace(library, styles=["waltz", "tango", "waltz", "rumba"])
+    assert hidden(labelled).styles == [""] * 4 and labelled.styles[0] == "waltz"
+    figures = [{"clip": "clip0", "song_s": [0.0, 2.0]}, {"clip": "clip1", "song_s": [2.0, 3.0]},
+               {"clip": "clip2", "song_s": [3.0, 6.0]}]
+    style_of = dict(zip(labelled.names, labelled.styles, strict=True))
+    assert own_style_seconds(figures, style_of, "waltz") == (5.0, 6.0)
+    note = library_note({"library_unsorted": {"own_style_share": 0.5},
+                         "library_unsorted_match": {"own_style_share": 0.8}})
+    assert "energy matching alone 50.0%" in note and "learned match 80.0%" in note
