@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d, minimum_filter1d
 
+from .kinematics import fk_numpy
 from .motion import Motion
-from .skeleton import TOE_ENDS
+from .skeleton import BODY_JOINTS, TOE_ENDS
 
 
 def floor_offset(motion: Motion) -> float:
@@ -37,19 +38,27 @@ def floor_lift(low: np.ndarray) -> np.ndarray:
     return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
 
 
-def contact_floor(motion: Motion, contacts: np.ndarray, window_s: float = 2.0, smooth_s: float = 0.5) -> np.ndarray:
-    """The floor's height under a generated dance, frame by frame [T], from its predicted contacts [T, 2].
+def toe_ends(motion: Motion) -> np.ndarray:
+    """World positions [T, 2, 3] of the toe ends (left, right), by the forward kinematics of the body alone
+    (`Skeleton.feet`)."""
+    return fk_numpy(motion.skeleton.feet(), motion.rotations[:, :BODY_JOINTS], motion.root_positions,
+                    with_end_sites=True)[2]
+
+
+def contact_floor(toes: np.ndarray, contacts: np.ndarray, fps: float, window_s: float = 2.0,
+                  smooth_s: float = 0.5) -> np.ndarray:
+    """The floor's height under a generated dance, frame by frame [T], from its toe ends' heights [T, 2] and its
+    predicted contacts [T, 2].
 
     A planted toe (contact predicted) is on the floor: the floor over a 2-s window is the lowest planted toe in
     it, or the lowest toe of any frame where the model predicts no contact in the whole window; smoothed as
     `floor_track`, so the correction is a slow rise and fall of the whole body, never a jolt.
     """
-    toes = motion.end_effectors()[:, list(TOE_ENDS), 1]
     planted = np.where(np.asarray(contacts) > 0.5, toes, np.inf).min(axis=1)
-    size = max(1, int(window_s * motion.fps))
+    size = max(1, int(window_s * fps))
     low = minimum_filter1d(planted, size=size, mode="nearest")
     any_low = minimum_filter1d(toes.min(axis=1), size=size, mode="nearest")
-    return gaussian_filter1d(np.where(np.isfinite(low), low, any_low), smooth_s * motion.fps, mode="nearest")
+    return gaussian_filter1d(np.where(np.isfinite(low), low, any_low), smooth_s * fps, mode="nearest")
 
 
 def floor_shift(motion: Motion, contacts: np.ndarray) -> np.ndarray:
@@ -59,7 +68,6 @@ def floor_shift(motion: Motion, contacts: np.ndarray) -> np.ndarray:
 
     Why: the network's pelvis height wanders a few centimetres from its legs' length (the Latin dances hovered,
     never a toe within 3 cm of the floor in 2 s), and the foot model only ever lifts."""
-    shift = -contact_floor(motion, contacts)
-    root = motion.root_positions + shift[:, None] * [0.0, 1.0, 0.0]
-    placed = Motion(motion.rotations, root, motion.fps, motion.skeleton)
-    return shift + floor_lift(placed.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1))
+    toes = toe_ends(motion)[:, :, 1]
+    shift = -contact_floor(toes, contacts, motion.fps)
+    return shift + floor_lift((toes + shift[:, None]).min(axis=1))

@@ -16,10 +16,12 @@ from scipy.spatial.transform import Rotation
 
 from .kinematics import fk_numpy
 from .motion import Motion
-from .skeleton import JOINT_INDEX, TOE_ENDS
+from .skeleton import BODY_JOINTS, JOINT_INDEX
 
 LEGS = (("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "right_ankle"))
-BLEND_S = 0.12  # the hold eases in and out over this long (3 frames at 25 fps), so a foot never jumps
+BLEND_S = 0.12  # a hold eases in and out over at least this long (3 frames at 25 fps), so a foot never jumps
+EASE_SPEED = 0.5  # m/s: easing a hold in or out adds at most about this much to the foot's speed
+GAP_S = 1.0  # between two holds of one foot at most this far apart the shift goes straight from one to the other
 MIN_RUN_S = 0.08  # a predicted contact shorter than this (one frame at 25 fps) is the model's flicker, not a step
 
 
@@ -35,23 +37,64 @@ def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return Rotation.from_rotvec(_unit(axis) * angle[:, None]).as_matrix()
 
 
-def hold_weights(planted: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """For one foot's contact flags [T] (bool): how much of the hold applies on each frame [T] (1 inside a planted
-    run, easing to 0 over BLEND_S either side) and which run it belongs to [T] (-1: none)."""
-    t = len(planted)
+def contact_runs(planted: np.ndarray, fps: float) -> list[tuple[int, int]]:
+    """The runs [start, end) of one foot's contact flags [T] (bool), those shorter than MIN_RUN_S left out."""
     flags = np.r_[False, np.asarray(planted, bool), False]
     starts, ends = np.flatnonzero(~flags[:-1] & flags[1:]), np.flatnonzero(flags[:-1] & ~flags[1:])
-    keep = (ends - starts) >= max(1, int(round(MIN_RUN_S * fps)))
-    starts, ends = starts[keep], ends[keep]
-    blend = max(1, int(round(BLEND_S * fps)))
-    weight, run = np.zeros(t), np.full(t, -1)
+    shortest = max(1, int(round(MIN_RUN_S * fps)))
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if b - a >= shortest]
+
+
+def _ease(x: np.ndarray) -> np.ndarray:
+    """0 -> 1 with no slope at either end (smoothstep)."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def hold_offsets(toe_xz: np.ndarray, planted: np.ndarray, fps: float) -> np.ndarray:
+    """Where one toe end must move on the floor [T, 2] (x, z) to stand still through each contact run of `planted`
+    [T] at the run's mean place, `toe_xz` [T, 2] being where it is.
+
+    Between two runs the offset goes smoothly from the one run's last to the next run's first, so a swinging foot
+    keeps its own swing plus a slowly changing shift; before the first run and after the last, and across a gap
+    longer than GAP_S, it eases from or to nothing over at least BLEND_S, longer for a larger offset (at most
+    EASE_SPEED m/s more foot speed). Why not a short fade at both ends of every run: the body drifts from a planted
+    foot by up to 20 cm within a step, and taking that back in a few frames flicks the foot (jitter, fast ankles).
+    """
+    t = len(toe_xz)
+    out = np.zeros((t, 2))
+    runs = contact_runs(planted, fps)
+    if not runs:
+        return out
+    ends = []
+    for a, b in runs:
+        out[a:b] = toe_xz[a:b].mean(0) - toe_xz[a:b]
+        ends.append((out[a], out[b - 1]))
     frames = np.arange(t)
-    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
-        outside = np.maximum(a - frames, frames - (b - 1))  # frames before or after the run, 0 inside
-        w = np.clip(1.0 - outside / (blend + 1), 0.0, 1.0)
-        better = w > weight
-        weight[better], run[better] = w[better], k
-    return weight, run
+    min_ease = max(1, int(round(BLEND_S * fps)))
+
+    def ease_len(offset: np.ndarray) -> int:
+        return max(min_ease, int(np.ceil(np.linalg.norm(offset) / EASE_SPEED * fps)))
+
+    first_a, last_b = runs[0][0], runs[-1][1]
+    n = ease_len(ends[0][0])  # before the first run: from nothing to its first offset
+    before = frames[:first_a]
+    out[before] = ends[0][0] * _ease(1 - (first_a - before) / (n + 1))[:, None]
+    n = ease_len(ends[-1][1])  # after the last run: back to nothing
+    after = frames[last_b:]
+    out[after] = ends[-1][1] * _ease(1 - (after - (last_b - 1)) / (n + 1))[:, None]
+    for k in range(len(runs) - 1):
+        e, s = runs[k][1] - 1, runs[k + 1][0]  # last frame of one run, first of the next
+        gap = frames[e + 1 : s]
+        if len(gap) == 0:
+            continue
+        c_e, c_s = ends[k][1], ends[k + 1][0]
+        if (s - e) / fps <= GAP_S:
+            out[gap] = c_e + (c_s - c_e) * _ease((gap - e) / (s - e))[:, None]
+        else:  # a long swing: let go of the one hold and take up the next, each eased
+            out[gap] = (c_e * _ease(1 - (gap - e) / (ease_len(c_e) + 1))[:, None]
+                        + c_s * _ease(1 - (s - gap) / (ease_len(c_s) + 1))[:, None])
+    return out
 
 
 def lock_feet(motion: Motion, contacts: np.ndarray) -> Motion:
@@ -60,18 +103,14 @@ def lock_feet(motion: Motion, contacts: np.ndarray) -> Motion:
     floor; the legs reach it by two-bone IK. Where the leg cannot reach, it stretches as far as it can."""
     s = motion.skeleton
     rot = motion.rotations.copy()
-    wp, wr, ends = fk_numpy(s, rot, motion.root_positions, with_end_sites=True)
-    toes = ends[:, list(TOE_ENDS)]
+    wp, wr, toes = fk_numpy(s.feet(), rot[:, :BODY_JOINTS], motion.root_positions, with_end_sites=True)
     for side, (hip, knee, ankle) in enumerate(LEGS):
-        weight, run = hold_weights(np.asarray(contacts)[:, side] > 0.5, motion.fps)
-        frames = np.flatnonzero(weight > 0)
+        shift = hold_offsets(toes[:, side][:, [0, 2]], np.asarray(contacts)[:, side] > 0.5, motion.fps)
+        frames = np.flatnonzero(np.abs(shift).max(axis=1) > 1e-9)
         if len(frames) == 0:
             continue
-        toe = toes[:, side]
-        anchors = np.array([toe[(run == k) & (weight >= 1)][:, [0, 2]].mean(0)
-                            for k in range(run.max() + 1)])
         delta = np.zeros((len(frames), 3))
-        delta[:, [0, 2]] = weight[frames, None] * (anchors[run[frames]] - toe[frames][:, [0, 2]])
+        delta[:, [0, 2]] = shift[frames]
         h, k, a = (JOINT_INDEX[n] for n in (hip, knee, ankle))
         hp, kp, ap = wp[frames, h], wp[frames, k], wp[frames, a]
         thigh, shin = np.linalg.norm(s.offsets[k]), np.linalg.norm(s.offsets[a])

@@ -158,6 +158,12 @@ class Skeleton:
     def end_site_parents(self) -> np.ndarray:
         return np.array([s.parent for s in self.end_sites], dtype=np.int64)
 
+    def feet(self) -> Skeleton:
+        """The body's first BODY_JOINTS joints (no fingers, jaw or eyes) with only the toe end sites: all that the
+        feet and the floor depend on, at under half the forward kinematics of the whole skeleton."""
+        return Skeleton(self.offsets[:BODY_JOINTS], self.names[:BODY_JOINTS], self.parents[:BODY_JOINTS],
+                        tuple(self.end_sites[i] for i in TOE_ENDS))
+
     def scaled(self, factor: float) -> Skeleton:
         return Skeleton(self.offsets * factor, self.names, self.parents, self.end_sites)
 

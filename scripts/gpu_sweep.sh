@@ -47,5 +47,7 @@ for w in "${weights[@]}"; do
         >"$v.log" 2>&1 &
 done
 wait
-tar czf "$OUT/sweep.tar.gz" --exclude='*.pt' --exclude=cache "$RUNS"
+# Logs and tables only: the weights are already in OUT, and their runtime twins (.npz) would push the archive past what
+# a lent machine sends back.
+tar czf "$OUT/sweep.tar.gz" --exclude='*.pt' --exclude='*.npz' --exclude=cache "$RUNS"
 cat "$RUNS"/validate/*/validation.md 2>/dev/null | grep -E '^\|' | sort -u

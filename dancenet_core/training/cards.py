@@ -11,6 +11,7 @@ from pathlib import Path
 from ..atomic import write_text
 from ..data.dance_with_melody import Recording, read_manifest
 from ..data.split import SPLIT_FILE, validation_songs
+from ..engines.dancenet import FOOT_CLEANUP
 from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
@@ -397,7 +398,7 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         f"Generated (temperature {before['temperature']}, seed {before['seed']}) vs real dances on the same "
         "music spans of the test sequences; Beat Align Score with sigma 50 ms (Bailando's 3 frames at 60 fps):",
         "",
-        "| metric | real | generated | generated + foot model |",
+        f"| metric | real | generated | generated + foot clean-up ({FOOT_CLEANUP}) |",
         "|---|---|---|---|",
     ]
     fixed = after["summary"]["generated"] if after else {}
@@ -410,17 +411,29 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         "- contact_ratio: share of toe frames within 5 cm of the dance's floor; min/max_lowest_toe_m: each dance's "
         "lowest toe (floor at y = 0), lowest and highest over the dances; max_longest_freeze_s: worst dance.",
         f"- Beat Align Score, generated / real: {gen['beat_align_score'] / real['beat_align_score']:.2f}.",
-        f"- Foot sliding before the foot model, generated / real: "
+        f"- Foot sliding before the foot clean-up, generated / real: "
         f"{gen['foot_slide_ratio'] / max(real['foot_slide_ratio'], 1e-9):.2f}.",
         f"- Longest freeze over all test dances: {gen['max_longest_freeze_s']:.2f} s; largest distance from the "
         f"start: {gen['max_root_extent_m']:.2f} m.",
         f"- Foot-contact accuracy of DanceNet's predictions against contacts detected on the real dance at the "
         f"same frames: {gen['contact_accuracy']:.3f} (a different dance, so this is agreement, not error).",
     ]
+    lines += [
+        "",
+        "## Foot clean-up",
+        "Every dance is stood on the floor from its predicted contacts (the root's height only, frame by frame). "
+        + ("The clean-up holds each foot where it stands through each contact the model predicts, the legs reaching "
+           "it by two-bone IK (hip and knee; the foot's own turn, the path and the upper body kept); no training."
+           if FOOT_CLEANUP == "lock" else f"The clean-up is `{FOOT_CLEANUP}` (`engines/dancenet.py`).")
+        + " Chosen on the validation songs among the contact lock, the Foot Constraint Model and both "
+          "(`dancenet validate --cleanup`; docs/experiments.md).",
+    ]
     if footfix_info:
         lines += [
             "",
-            "## Foot Constraint Model (`footfix.pt`)",
+            "## Foot Constraint Model (`footfix.pt`"
+            + ("" if "model" in FOOT_CLEANUP else ", not the default clean-up: `dancenet validate --cleanup model`")
+            + ")",
             f"Test MSE on simulated sliding (normalised lower-body channels): ours (temporal conv) "
             f"{footfix_info['ours']['test_mse']:.4f}, baseline (FC + LSTM + FC) "
             f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
