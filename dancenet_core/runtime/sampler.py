@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numba
 import numpy as np
@@ -115,15 +115,65 @@ def _component(out: np.ndarray, mixtures: int, draw: float, temperature: float) 
     return mixtures - 1
 
 
+class Net(NamedTuple):
+    """The network as the kernel reads it, re-laid out by `CachedSampler` (a named tuple of arrays is one typed
+    argument to a numba kernel): the motion encoder, each layer's fused filter|gate|next-tap matrix, residual
+    and skip convs, the decoder, the input skip ([0, O] when the model has none) and the modelled channels."""
+
+    dilations: np.ndarray
+    enc_w0: np.ndarray
+    enc_b0: np.ndarray
+    enc_w1: np.ndarray
+    enc_b1: np.ndarray
+    enc_w2: np.ndarray
+    enc_b2: np.ndarray
+    w_np: np.ndarray
+    w_res: np.ndarray
+    b_res: np.ndarray
+    skip_w: np.ndarray
+    skip_b: np.ndarray
+    dec_w0: np.ndarray
+    dec_b0: np.ndarray
+    dec_w1: np.ndarray
+    dec_b1: np.ndarray
+    in_w: np.ndarray
+    in_b: np.ndarray
+    modelled: np.ndarray
+
+
+class Head(NamedTuple):
+    """How the outputs are read and drawn from: components, continuous channels, the floor of log sigma, the
+    temperature, and whether each component's mean is an offset from the previous frame."""
+
+    mixtures: int
+    cont: int
+    min_log_sigma: np.float32
+    temperature: np.float32
+    residual: bool
+
+
+class Run(NamedTuple):
+    """One call's arrays: the frames [T, B, D] (written), the outputs [T, B, O] (recorded if sized), each layer's
+    queue, the song's layer conditioning [T, L, 2R], the draws (`eps`, `unif`, by absolute frame) and the frames
+    to feed instead of samples (`teacher`, [0, B, D] for none)."""
+
+    frames: np.ndarray
+    outputs: np.ndarray
+    queues: np.ndarray
+    layer_cond: np.ndarray
+    eps: np.ndarray
+    unif: np.ndarray
+    teacher: np.ndarray
+
+
 @numba.njit(cache=True)
-def _generate(  # a compiled kernel takes its arrays flat
-    frames, outputs, t0, t1, queues, dilations,
-    enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
-    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b,
-    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher, residual,
-):  # fmt: skip
+def _generate(run: Run, net: Net, head: Head, t0: int, t1: int) -> None:
     """Frames t0..t1-1 (frame t from frames < t). With `teacher` non-empty, feed those frames instead of
     samples (used to check the cached pass equals the full forward). Outputs are recorded if sized."""
+    frames, outputs, queues, layer_cond, eps, unif, teacher = run
+    (dilations, enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2, w_np, w_res, b_res, skip_w, skip_b,
+     dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b, modelled) = net
+    mixtures, cont, min_log_sigma, temperature, residual = head
     bsz = frames.shape[1]
     n_layers = w_np.shape[0]
     r = w_res.shape[1]
@@ -178,17 +228,17 @@ def _generate(  # a compiled kernel takes its arrays flat
                 frames[t, b, cont + j] = 1.0 if out[c0 + j] > 0.0 else 0.0
 
 
-def _generate_numpy(
-    frames, outputs, t0, t1, queues, dilations,
-    enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2,
-    w_np, layer_cond, w_res, b_res, skip_w, skip_b, dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b,
-    mixtures, cont, modelled, min_log_sigma, temperature, eps, unif, teacher, residual,
-) -> None:  # fmt: skip
+def _generate_numpy(run: Run, net: Net, head: Head, t0: int, t1: int) -> None:
     """`_generate` in numpy and Python (dancenet_core.jit: what runs before it is compiled), the same numbers
     bit for bit: each product through the BLAS call numba makes for `vector @ matrix` (scipy's sgemv, no
     transpose, on the matrix's transpose), the float32 and float64 steps as the kernel does them, and its
     exp, log1p and tanh through Python's math module, which calls the C library the kernel calls."""
     from scipy.linalg.blas import sgemv  # the library numba's BLAS calls go to
+
+    frames, outputs, queues, layer_cond, eps, unif, teacher = run
+    (dilations, enc_w0, enc_b0, enc_w1, enc_b1, enc_w2, enc_b2, w_np, w_res, b_res, skip_w, skip_b,
+     dec_w0, dec_b0, dec_w1, dec_b1, in_w, in_b, modelled) = net
+    mixtures, cont, min_log_sigma, temperature, residual = head
 
     def dot(v: np.ndarray, m: np.ndarray) -> np.ndarray:
         return sgemv(1.0, m.T, v)
@@ -322,6 +372,9 @@ class CachedSampler:
         temperature = sampling.temperature if sampling is not None else 1.0
         cont = cfg.continuous_dim
         generate = jit.pick(_generate, _generate_numpy)
+        net = Net(self.dilations, *self.enc, self.w_np, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
+                  *self.input_skip, self.modelled)
+        head = Head(cfg.mixtures, cont, np.float32(cfg.min_log_sigma), np.float32(temperature), cfg.residual_output)
         for t0 in range(1, t_total, CHUNK):
             t1 = min(t_total, t0 + CHUNK)
             # Draws for this chunk only (bounded memory), indexed by absolute frame.
@@ -333,10 +386,7 @@ class CachedSampler:
             split = min(max(t0, len(kept)), t1)  # frames before `split` are kept ones
             for a, b, forced in ((t0, split, kept), (split, t1, tf)):
                 if a < b:
-                    generate(frames, outputs, a, b, queues, self.dilations, *self.enc,
-                              self.w_np, layer_cond, self.w_res, self.b_res, self.skip_w, self.skip_b, *self.dec,
-                              *self.input_skip, cfg.mixtures, cont, self.modelled, np.float32(cfg.min_log_sigma),
-                              np.float32(temperature), eps, unif, forced, cfg.residual_output)
+                    generate(Run(frames, outputs, queues, layer_cond, eps, unif, forced), net, head, a, b)
             if progress is not None:
                 progress(t1 / t_total)
             if should_stop is not None and should_stop():
