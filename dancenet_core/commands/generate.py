@@ -151,7 +151,7 @@ def _copied(details: dict) -> str:
     is one clip played straight through."""
     return (f"{100 * details['long_run_share']:.0f}% of frames from runs of one clip longer than "
             f"{details['long_run_bars']} bars; longest run {details['longest_run_bars']} bars "
-            f"({details['longest_run_s']:.1f} s); largest time-warp {100 * details['max_warp']:.0f}%")
+            f"({details['longest_run_s']:.1f} s); played within {100 * details['max_warp']:.0f}% of its captured speed")
 
 
 def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: GenerationResult,

@@ -351,8 +351,8 @@ def test_generate_reports_the_copied_runs(tmp_path: Path, monkeypatch: pytest.Mo
         assert d["longest_run_s"] == pytest.approx(d["longest_run_bars"] * bar_s, rel=0.06)  # bars of the song
         assert 0.0 < d["max_warp"] <= 0.15  # the engine's cap (choreography.WARP_RANGE)
         assert (f"song_take{k}: {d['long_run_share']:.0%} of frames from runs of one clip longer than 4 bars; "
-                f"longest run {d['longest_run_bars']} bars ({d['longest_run_s']:.1f} s); largest time-warp "
-                f"{d['max_warp']:.0%}") in printed
+                f"longest run {d['longest_run_bars']} bars ({d['longest_run_s']:.1f} s); played within "
+                f"{d['max_warp']:.0%} of its captured speed") in printed
 
 
 def test_continue_from_here_keeps_the_kept_frames_and_joins_without_a_jump(tmp_path: Path,
