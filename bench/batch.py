@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -50,14 +51,16 @@ def run(songs: Path, out: Path, flags: list[str], scratch: Path) -> dict:
     """One batch command from a cold music cache (numba's compiled code kept): its wall time and batch.json."""
     env = os.environ | {"DANCENET_CACHE": str(scratch / f"cache-{out.name}")}
     env.setdefault("NUMBA_CACHE_DIR", str(Path.home() / ".cache" / "dancenet" / "numba"))
-    t = time.perf_counter()
+    t, before = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run([sys.executable, "-m", "dancenet_core.cli", "batch", str(songs), "-o", str(out), *flags],
                           cwd=REPO, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t
+    wall, after = time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(flags)} failed: {proc.stderr.strip().splitlines()[-1:]}")
     rows = json.loads((out / "batch.json").read_text())["songs"]
-    return {"wall_s": round(wall, 2), "songs_per_minute": round(60 * len(rows) / wall, 2),
+    # CPU of the command and the processes it waited for: its workers (Ray's run under Ray's own daemons)
+    return {"wall_s": round(wall, 2), "songs_per_minute": round(60 * len(rows) / wall, 2), "cpu_s": round(cpu, 1),
             "done": sum(r["status"] == "done" for r in rows),
             "worker_peak_memory_mb": max(r["peak_memory_mb"] for r in rows),
             "song_seconds_median": round(float(np.median([r["seconds"] for r in rows])), 2)}

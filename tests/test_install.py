@@ -1,6 +1,7 @@
 """The package installs anywhere: in a fresh venv of this Python (3.11 in the main run, 3.13 in the Blender 5.2 run),
 `pip install .` then `dancenet generate` dances to the example song with no post-install step (madmom's metadata
-is answered in-process) and no torch; the `render` extra resolves."""
+is answered in-process) and no torch, `dancenet batch` runs without Ray; the `render` and `cluster` extras
+resolve."""
 
 from __future__ import annotations
 
@@ -31,5 +32,16 @@ def test_pip_install_then_generate_in_a_fresh_venv(tmp_path: Path) -> None:
                      "-o", "out", "--end", "8"], tmp_path)  # fmt: skip
     assert generate.returncode == 0, generate.stdout[-2000:] + generate.stderr[-3000:]
     assert (tmp_path / "out" / "example_song.bvh").is_file()
-    render = _run([*pip, "install", "-q", "--dry-run", f"{ROOT}[render]"], tmp_path)
-    assert render.returncode == 0, render.stderr[-3000:]
+    # a catalog runs locally without the cluster extra; asking for Ray, or for FBX without bpy, is one line
+    dancenet = [str(venv / "bin" / "dancenet"), "batch", str(ROOT / "examples" / "example_song.ogg"), "-o", "cat"]
+    batch = _run([*dancenet, "--end", "8", "--jobs", "1"], tmp_path)
+    assert batch.returncode == 0, batch.stdout[-2000:] + batch.stderr[-3000:]
+    assert (tmp_path / "cat" / "example_song" / "example_song.bvh").read_bytes() == \
+        (tmp_path / "out" / "example_song.bvh").read_bytes()
+    for flag, says in (("--cluster=ray", 'pip install "dancenet[cluster]"'), ("--fbx", "bpy module")):
+        refused = _run([*dancenet, flag], tmp_path)
+        assert refused.returncode == 2 and says in refused.stderr and len(refused.stderr.splitlines()) == 1, \
+            refused.stderr
+    for extra in ("render", "cluster"):
+        resolved = _run([*pip, "install", "-q", "--dry-run", f"{ROOT}[{extra}]"], tmp_path)
+        assert resolved.returncode == 0, resolved.stderr[-3000:]
