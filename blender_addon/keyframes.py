@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dancenet_core.errors import DanceNetError
-from dancenet_core.jointmap import bone_directions, character_frame, min_rotation
+from dancenet_core.jointmap import bone_directions, character_frame, min_rotation, rotation_part
 from dancenet_core.kinematics import fk_numpy
 
 from . import rigcontrols, rigdef
@@ -77,18 +77,6 @@ _LIMBS = {f"{side}_{upper}": (f"{side}_{mid}", f"{side}_{end}") for side in ("le
           for upper, mid, end in (("hip", "knee", "ankle"), ("shoulder", "elbow", "wrist"))}
 
 
-def _min_rotations(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per row, the smallest rotation [T, 3, 3] turning direction a [T, 3] onto b [T, 3] (Rodrigues)."""
-    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
-    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
-    v = np.cross(a, b)
-    cos = np.clip(np.einsum("ti,ti->t", a, b), -1.0 + 1e-9, None)
-    k = np.zeros((len(a), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    k -= np.swapaxes(k, 1, 2)
-    return np.eye(3) + k + k @ k / (1.0 + cos)[:, None, None]
-
-
 def _reach(
     p_upper: np.ndarray, p_mid: np.ndarray, p_end: np.ndarray, want: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -105,8 +93,8 @@ def _reach(
     cos = np.clip((a**2 + d**2 - b**2) / (2 * a * d), -1.0, 1.0)
     mid = np.where(straight, p_mid, p_upper + a * (cos * u + np.sqrt(1 - cos**2) * n))
     end = np.where(straight, p_end, p_upper + d * u)
-    turn_upper = _min_rotations(p_mid - p_upper, mid - p_upper)
-    turn_lower = _min_rotations(np.einsum("tij,tj->ti", turn_upper, p_end - p_mid), end - mid) @ turn_upper
+    turn_upper = min_rotation(p_mid - p_upper, mid - p_upper)
+    turn_lower = min_rotation(np.einsum("tij,tj->ti", turn_upper, p_end - p_mid), end - mid) @ turn_upper
     return turn_upper, turn_lower
 
 
@@ -200,12 +188,12 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
         turn = g[:, j] @ (delta[j] @ (rest[bone][:3, :3] / np.linalg.norm(rest[bone][:3, :3], axis=0)))
         if j in spans:
             k = spans[j]
-            turn = _min_rotations(np.einsum("tij,j->ti", g[:, j], q @ (ours[k] - ours[j])),
+            turn = min_rotation(np.einsum("tij,j->ti", g[:, j], q @ (ours[k] - ours[j])),
                                   (p[:, k] - p[:, j]) @ qc.T) @ turn
         return turn
 
     # The pelvis bone's head goes where it must for the hips, which it carries, to be where the dance puts them.
-    pelvis_turn = aim(0, mapped[0]) @ _unit(rest[mapped[0]]).T
+    pelvis_turn = aim(0, mapped[0]) @ rotation_part(rest[mapped[0]]).T
     root_target = placed(p[:, hips].mean(axis=1)) - pelvis_turn @ (hips_theirs - theirs[0])
 
     def head_offset(parent: str, child: str) -> np.ndarray:
@@ -384,15 +372,9 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _miss(posed: np.ndarray, target: np.ndarray, aimed: bool) -> np.ndarray:
     """Angles [T] between bones' posed and target matrices [T, 4, 4]: between their Y axes if `aimed`."""
     if aimed:
-        y, want = _unit(posed)[:, :, 1], _unit(target)[:, :, 1]
+        y, want = rotation_part(posed)[:, :, 1], rotation_part(target)[:, :, 1]
         return np.arccos(np.clip(np.einsum("ti,ti->t", y, want), -1.0, 1.0))
-    return _angle(_unit(posed), _unit(target))
-
-
-def _unit(m: np.ndarray) -> np.ndarray:
-    """The rotation part [..., 3, 3] of matrices, a bone's stretch or the object's scale taken out."""
-    r = m[..., :3, :3]
-    return r / np.linalg.norm(r, axis=-2, keepdims=True)
+    return _angle(rotation_part(posed), rotation_part(target))
 
 
 def _evaluate(rig: bpy.types.Object, scene: bpy.types.Scene, frames: np.ndarray, bones: list[str]) -> np.ndarray:
@@ -503,9 +485,9 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
             carried = turns[above[c]] if above[c] is not None else np.eye(4)
             a_control, a_driven = carried @ at[c], carried @ at[measured[j]]  # after the controls above it turn
             if j in controls.aimed:
-                turn = _min_rotations(a_driven[:, :3, 1], targets[j][:, :3, 1])
+                turn = min_rotation(a_driven[:, :3, 1], targets[j][:, :3, 1])
             else:
-                turn = _unit(targets[j]) @ np.swapaxes(_unit(a_driven), 1, 2)
+                turn = rotation_part(targets[j]) @ np.swapaxes(rotation_part(a_driven), 1, 2)
             head = a_control[:, :3, 3]
             move = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
             move[:, :3, :3] = turn
@@ -516,7 +498,7 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
                 # The head moves by `shift` in armature space; the location is in the frame the bone has with no
                 # pose, which is its current frame turned back by its basis.
                 location += np.einsum("tij,tj->ti", bases[c] @ np.linalg.inv(a_control[:, :3, :3]), shift)
-            u = _unit(a_control)
+            u = rotation_part(a_control)
             bases[c] = bases[c] @ np.swapaxes(u, 1, 2) @ turn @ u
             turns[c] = move @ carried
     else:

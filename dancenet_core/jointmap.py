@@ -15,7 +15,6 @@ A `JointMap` says which source joint each of our joints is; everything else (fin
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -267,22 +266,25 @@ def character_frame(
 
 
 def min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation [3, 3] taking direction a onto direction b."""
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    axis = np.cross(a, b)
-    s, c = float(np.linalg.norm(axis)), float(a @ b)
-    if s < 1e-9:
-        if c > 0:
-            return np.eye(3)
-        # Opposite directions: half a turn about any axis perpendicular to a.
-        helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        axis = np.cross(a, helper)
-        s, c = 0.0, -1.0
-    k = axis / np.linalg.norm(axis)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    angle = math.atan2(s, c)
-    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
+    """The smallest rotations [..., 3, 3] taking directions a [..., 3] onto directions b [..., 3] (Rodrigues:
+    I + K + K^2 / (1 + cos), K the cross product's matrix). Opposite directions, where that has no answer:
+    half a turn about an axis perpendicular to a."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    a, b = np.broadcast_arrays(a, b)
+    v = np.cross(a, b)
+    cos = np.einsum("...i,...i->...", a, b)
+    opposite = cos < -1.0 + 1e-9
+    k = np.zeros((*v.shape, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k -= np.swapaxes(k, -1, -2)
+    out = np.eye(3) + k + k @ k / np.where(opposite, 1.0, 1.0 + cos)[..., None, None]
+    if opposite.any():
+        helper = np.where(np.abs(a[opposite][:, :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        n = np.cross(a[opposite], helper)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        out[opposite] = 2.0 * n[:, :, None] * n[:, None, :] - np.eye(3)
+    return out
 
 
 def _chain_child(skeleton: Skeleton, j: int, mapped: set[int] | dict[int, object]) -> int | None:
@@ -348,8 +350,9 @@ def rest_turns(skeleton: Skeleton, heads: dict[int, np.ndarray], axes: dict[int,
     return turns
 
 
-def _unit(m: np.ndarray) -> np.ndarray:
-    """The rotation part [..., 3, 3] of matrices [..., 4, 4], a bone's stretch or the object's scale taken out."""
+def rotation_part(m: np.ndarray) -> np.ndarray:
+    """The rotation part [..., 3, 3] of matrices [..., 4, 4] (or [..., 3, 3]), a bone's stretch or the object's
+    scale taken out."""
     r = m[..., :3, :3]
     return r / np.linalg.norm(r, axis=-2, keepdims=True)
 
@@ -377,9 +380,9 @@ def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: fl
     if not 0.5 < height < 2.5:
         raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} m tall; a dancer is 0.5-2.5 m (give the "
                             "armature object a scale that makes its bones metres)")
-    axes = _unit(rest)[:, :, 1] @ to_ours.T
+    axes = rotation_part(rest)[:, :, 1] @ to_ours.T
     turn = rest_turns(DEFAULT_SKELETON, {j: rest_heads[k] for k, j in enumerate(ours)},
                       {j: axes[k] for k, j in enumerate(ours)})
     turns = np.stack([turn[j] for j in ours])
-    from_rest = to_ours @ _unit(pose) @ np.swapaxes(_unit(rest), -1, -2) @ to_ours.T
+    from_rest = to_ours @ rotation_part(pose) @ np.swapaxes(rotation_part(rest), -1, -2) @ to_ours.T
     return SourcePose(ours, pose[..., :3, 3] @ to_ours.T, from_rest @ turns, rest_heads, fps, turns)

@@ -70,13 +70,17 @@ class FeatureLayout:
         return cls(skeleton.num_joints, len(skeleton.end_sites))
 
 
-def _yaw_and_tilt(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split root rotations R = Ry(yaw) @ S into unwrapped yaw [T] and swing S [T, 3] (S_y = 0).
+def heading(root_rotvecs: np.ndarray) -> np.ndarray:
+    """The heading of root rotations [..., 3] as angles [N] in (-pi, pi]: the twist about +Y (swing-twist
+    decomposition of the quaternion)."""
+    q = Rotation.from_rotvec(np.reshape(root_rotvecs, (-1, 3))).as_quat()  # x, y, z, w
+    return 2.0 * np.arctan2(q[:, 1], q[:, 3])
 
-    The heading is the twist about +Y (swing-twist decomposition of the quaternion).
-    """
-    q = Rotation.from_rotvec(root_rotvecs).as_quat()  # x, y, z, w
-    yaw = np.unwrap(2.0 * np.arctan2(q[:, 1], q[:, 3]))
+
+def _yaw_and_tilt(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split root rotations R = Ry(yaw) @ S into unwrapped yaw [T] (`heading`) and swing S [T, 3] (S_y = 0)."""
+    q = Rotation.from_rotvec(root_rotvecs).as_quat()
+    yaw = np.unwrap(heading(root_rotvecs))
     # angles as (N, 1): newer scipy reads a 1-D array for one axis as a single rotation
     swing = (Rotation.from_euler("y", -yaw[:, None]) * Rotation.from_quat(q)).as_rotvec()
     return yaw, swing

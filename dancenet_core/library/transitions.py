@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from ..continuation import _fade
 from ..motion import Motion
-from ..representation import foot_contacts
+from ..representation import foot_contacts, heading
 from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
 
@@ -96,12 +96,6 @@ def _sample(library: MotionLibrary, pos: np.ndarray, clip: np.ndarray) -> tuple[
     return rot, root
 
 
-def _yaw(rotvec: np.ndarray) -> np.ndarray:
-    """Heading (twist about +Y) of root rotations [..., 3]."""
-    q = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_quat()
-    return 2.0 * np.arctan2(q[:, 1], q[:, 3])
-
-
 def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Frames turned by `turn` about +Y and shifted by `shift` on the floor (root rotation and position)."""
     r = Rotation.from_euler("y", turn)
@@ -163,7 +157,7 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     run_of_figure = np.cumsum(new_run) - 1
     run = run_of_figure[which]
     cuts = [int(c) for c in np.flatnonzero(np.diff(run)) + 1]
-    turn, shift = -float(_yaw(rot[:1, 0])[0]), np.zeros(2)
+    turn, shift = -float(heading(rot[:1, 0])[0]), np.zeros(2)
     placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
     own_steps = np.zeros((n - 1, BODY_JOINTS))  # the source clips' own steps, before any blend (0 across a cut)
@@ -248,7 +242,7 @@ def _within_limit(steps: np.ndarray, slip: np.ndarray, limit: np.ndarray) -> np.
 def _follow(next_rot: np.ndarray, next_root: np.ndarray, rot: np.ndarray, root: np.ndarray) -> tuple[float, np.ndarray]:
     """The turn and floor shift that put a frame (rotations [J, 3], root [3]) where another run would have gone on
     to (its next frame, placed: [1, J, 3], [1, 3]), facing the same way."""
-    turn = float(_yaw(next_rot[:, 0])[0] - _yaw(rot[None, 0])[0])
+    turn = float(heading(next_rot[:, 0])[0] - heading(rot[None, 0])[0])
     return turn, next_root[0, [0, 2]] - Rotation.from_euler("y", turn).apply(root)[[0, 2]]
 
 

@@ -143,3 +143,23 @@ def test_the_command_line_says_fbx_needs_blender(tmp_path: Path, monkeypatch: py
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err
     assert "holds 1 FBX file (Samba Dancing.fbx...), which only Blender reads: build this folder with Build " \
            "Library in the DanceNet add-on's panel" in err
+
+
+def test_the_smallest_rotation_turns_any_direction_onto_any_other() -> None:
+    """One function for one direction or many, keying and the library alike: a proper rotation taking a onto b
+    and leaving their common perpendicular where it is; for opposite directions (no smallest one), half a turn,
+    still a rotation."""
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    b[:5] = -a[:5] * rng.uniform(0.5, 2.0, (5, 1))  # opposite
+    b[5:8] = a[5:8] * 3.0  # the same direction
+    r = min_rotation(a, b)
+    unit = (a / np.linalg.norm(a, axis=1, keepdims=True), b / np.linalg.norm(b, axis=1, keepdims=True))
+    np.testing.assert_allclose(np.einsum("tij,tj->ti", r, unit[0]), unit[1], atol=1e-9)
+    np.testing.assert_allclose(r @ np.swapaxes(r, 1, 2), np.broadcast_to(np.eye(3), r.shape), atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(r), 1.0, atol=1e-9)
+    normal = np.cross(a[8:], b[8:])
+    np.testing.assert_allclose(np.einsum("tij,tj->ti", r[8:], normal), normal, atol=1e-9)
+    np.testing.assert_allclose(r[5:8], np.broadcast_to(np.eye(3), (3, 3, 3)), atol=1e-12)
+    for k in (0, 9):  # one direction at a time gives the same rotation
+        np.testing.assert_allclose(min_rotation(a[k], b[k]), r[k], atol=1e-12)
