@@ -16,7 +16,7 @@ from dancenet_core.request import DanceRequest
 
 from . import job, rigclips, song
 from .job import error_message
-from .pipeline import panel_settings
+from .panelsettings import panel_settings
 
 
 def chosen_folder(props: bpy.types.PropertyGroup) -> Path | None:

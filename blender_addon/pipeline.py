@@ -16,10 +16,11 @@ from typing import Any
 import bpy
 
 from dancenet_core.errors import DanceNetError
-from dancenet_core.request import DanceRequest, SectionOverride, panel_options
+from dancenet_core.request import DanceRequest, SectionOverride
 
-from . import bonemap, markers, rig, rigchoice, rigcontrols, rollback, song, takes
+from . import bonemap, library, markers, rig, rigchoice, rigcontrols, rollback, song, takes
 from .job import Generator, error_message
+from .panelsettings import AS_DANCE, panel_settings
 
 RIG_NAME = "DanceNet Dancer"
 
@@ -85,17 +86,6 @@ class Applied:
         return "; ".join([text, *self.notes])
 
 
-def panel_settings(source: Any) -> dict[str, Any]:
-    """The request's panel settings (`request.panel_options`) read from the panel's properties, or from a take's
-    record (a dict): what a new setting needs to reach a dance, the record and a continued take."""
-    read = source.get if isinstance(source, dict) else lambda name, default: getattr(source, name, default)
-    values = {name: read(name, default) for name, default, _o in panel_options()}
-    for name, _default, o in panel_options():  # a folder setting: "" is none, "//" is beside the .blend
-        if o.kind is Path:
-            values[name] = Path(bpy.path.abspath(str(values[name]))) if values[name] else None
-    return values
-
-
 def prepare(scene: bpy.types.Scene) -> Plan:
     """Validate the scene's DanceNet settings into a Plan; raises DanceNetError for the user to read."""
     props = scene.dancenet
@@ -139,8 +129,6 @@ def prepare(scene: bpy.types.Scene) -> Plan:
 def section_settings(props: Any, song_path: str) -> tuple[SectionOverride, ...]:
     """The Sections panel's settings that differ from the dance's, for the sections of the song's last analysis
     (none when the song was not analysed yet, or another song was)."""
-    from .properties import AS_DANCE
-
     analysis = props.analysis_for(song_path)
     names = {s["name"] for s in analysis["sections"]} if analysis else set()
     out = []
@@ -154,8 +142,6 @@ def section_settings(props: Any, song_path: str) -> tuple[SectionOverride, ...]:
 
 def _actions_library(props: Any) -> Path:
     """The built library of the file's armature actions, or a one-line error saying to build it."""
-    from . import library
-
     built = library.chosen_library(props)
     if built is None or not built.is_file():
         raise DanceNetError("The library of this file's armature actions is not built (or they changed since): "

@@ -22,6 +22,7 @@ from dancenet_core.request import ENERGY_SCALES, RETURN_CHOICES, Option, panel_o
 from dancenet_core.skeleton import JOINT_NAMES
 
 from . import library, operators, pipeline, takes
+from .panelsettings import AS_DANCE
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
 _style_items: list[tuple[str, str, str, int]] = []
@@ -65,7 +66,6 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
 
 
 _section_style_items: list[tuple[str, str, str, int]] = []
-AS_DANCE = "same"  # a section setting that follows the dance's
 
 
 def _section_styles(_self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:

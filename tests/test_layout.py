@@ -4,6 +4,7 @@ import contracts hold."""
 
 from __future__ import annotations
 
+import ast
 import json
 import shutil
 import subprocess
@@ -87,3 +88,49 @@ def test_import_contracts_hold() -> None:
     lint = Path(sys.executable).parent / "lint-imports"
     out = subprocess.run([str(lint), "--no-cache"], capture_output=True, text=True, cwd=REPO)
     assert out.returncode == 0, out.stdout[-3000:]
+
+
+
+def _imports(package: str) -> dict[str, set[str]]:
+    """Each module of `package` and the modules of it that it imports, at its top or inside a function."""
+    modules = {}
+    for path in sorted((REPO / package).rglob("*.py")):
+        parts = path.relative_to(REPO).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        here = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    anchor = here.split(".")[: len(here.split(".")) - node.level + 1]
+                    base = ".".join([*anchor, base] if base else anchor)
+                targets |= {f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names}
+            elif isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names}
+        # a package's own __init__ runs first anyway: importing it from inside is no circle
+        graph[name] = {t for t in targets if t in modules and t != name and not name.startswith(t + ".")}
+    return graph
+
+
+@pytest.mark.parametrize("package", ["dancenet_core", "blender_addon"])
+def test_no_import_circle(package: str) -> None:
+    """No module imports, at its top or late inside a function, a module that imports it back (directly or
+    round a longer circle): each can be read, and changed, knowing only what lies below it."""
+    graph, circles, state = _imports(package), [], {}
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = "open"
+        for target in sorted(graph[module]):
+            if state.get(target) == "open":
+                circles.append([*path[path.index(target):], target])
+            elif target not in state:
+                visit(target, [*path, target])
+        state[module] = "done"
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    assert circles == []
