@@ -30,6 +30,8 @@ def main() -> None:
     p.add_argument("--match", type=float, nargs="+", default=[0.0, DEFAULT_SETTINGS.match],
                    help="weights of the match's cost (0: without the match)")
     p.add_argument("--takes", type=int, default=1)
+    p.add_argument("--match-style", type=float, default=DEFAULT_SETTINGS.match_style,
+                   help="weight of the match's style term (Settings.match_style)")
     args = p.parse_args()
     data = default_data_dir()
     split = load_split()
@@ -43,7 +45,8 @@ def main() -> None:
     for w in args.match:
         t = time.perf_counter()
         r = own_style_share(library, [pairs[s] for s in songs], data, MODEL_FPS, args.takes,
-                            model if w > 0 else None, dataclasses.replace(DEFAULT_SETTINGS, match=w))
+                            model if w > 0 else None,
+                            dataclasses.replace(DEFAULT_SETTINGS, match=w, match_style=args.match_style))
         r["seconds"] = round(time.perf_counter() - t, 1)
         out[f"match_{w:g}"] = r
         print(json.dumps({k: v for k, v in r.items() if k != "per_dance"}), flush=True)

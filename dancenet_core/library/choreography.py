@@ -70,6 +70,7 @@ class Settings:
     cut: float = 0.2  # every cut costs this much more than carrying on with the clip
     calm: float = 50.0  # per unit of a cut's step over the limit (steep: only where no calmer cut fits)
     match: float = 2.0  # per unit of the learned match's cosine below 1 (when the plan is given one)
+    match_style: float = 10.0  # the match's style term, per unit of style probability apart from the part's music
 
 
 DEFAULT_SETTINGS = Settings()
@@ -345,8 +346,8 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     grid = song_grid(analysis, start_s, end)
     rng = np.random.default_rng(seed)
     onset = analysis.features[:, ONSET_COL]
-    fit = None if match is None else FigureMatch(match, library, analysis.features,
-                                                 [grid.beats[a : a + n + 1] for a, n in grid.bars])
+    bar_beats = [grid.beats[a : a + n + 1] for a, n in grid.bars]
+    fit = None if match is None else FigureMatch(match, library, analysis.features, bar_beats, settings.match_style)
     previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
     dances = []
     for _ in range(takes):

@@ -139,6 +139,7 @@ class MatchModel:
     music_layers: list[tuple[np.ndarray, np.ndarray]]
     motion_layers: list[tuple[np.ndarray, np.ndarray]]
     meta: dict
+    style_layer: tuple[np.ndarray, np.ndarray] | None = None  # embedding -> the training styles' logits
 
     @property
     def context(self) -> int:
@@ -152,9 +153,18 @@ class MatchModel:
         """[N, E] unit vectors of `motion_bars` rows."""
         return _mlp((bars - self.motion_mean) / self.motion_std, self.motion_layers)
 
+    def style_probs(self, embedded: np.ndarray) -> np.ndarray:
+        """[N, styles] the training styles' probabilities of embedded bars (music or motion: one head for both)."""
+        w, b = self.style_layer
+        z = embedded @ w.T + b
+        z = np.exp(z - z.max(axis=-1, keepdims=True))
+        return z / z.sum(axis=-1, keepdims=True)
+
     def save(self, path: str | Path) -> None:
         arrays = {"music_mean": self.music_mean, "music_std": self.music_std, "motion_mean": self.motion_mean,
                   "motion_std": self.motion_std, "meta": np.array(json.dumps({**self.meta, "version": MATCH_VERSION}))}
+        if self.style_layer is not None:
+            arrays["style_w"], arrays["style_b"] = self.style_layer
         for side, layers in (("music", self.music_layers), ("motion", self.motion_layers)):
             for k, (w, b) in enumerate(layers):
                 arrays[f"{side}_w{k}"], arrays[f"{side}_b{k}"] = w.astype(np.float16), b.astype(np.float32)
@@ -174,8 +184,9 @@ class MatchModel:
                     n = sum(1 for k in z.files if k.startswith(f"{side}_w"))
                     return [(z[f"{side}_w{k}"].astype(np.float32), z[f"{side}_b{k}"]) for k in range(n)]
 
+                style = (z["style_w"], z["style_b"]) if "style_w" in z.files else None
                 return cls(z["music_mean"], z["music_std"], z["motion_mean"], z["motion_std"], layers("music"),
-                           layers("motion"), meta)
+                           layers("motion"), meta, style)
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise DanceNetError(f"{path}: not match weights ({e}); reinstall DanceNet or retrain them "
                                 "(dancenet train match)") from e
@@ -203,14 +214,19 @@ def cached_frames(library: MotionLibrary) -> np.ndarray:
 
 class FigureMatch:
     """How well each figure of a plan fits each bar of the song: the cosine of the bar's music embedding and the
-    embedding of the figure's motion over the clip beats the figure lays on that bar."""
+    embedding of the figure's motion over the clip beats the figure lays on that bar, less `style_weight` times how
+    far the figure's style (the training styles' probabilities of its motion) is from the style the whole part's
+    music has (the mean of its bars' probabilities): a bar alone often sounds like another style, the part
+    seldom does."""
 
     def __init__(self, model: MatchModel, library: MotionLibrary, features: np.ndarray,
-                 bar_beats: list[np.ndarray]) -> None:
+                 bar_beats: list[np.ndarray], style_weight: float = 0.0) -> None:
         self.model, self.library = model, library
         self.frames = cached_frames(library)
         self.music = model.embed_music(music_bars(features, bar_beats, model.context))
-        self._motion: dict[tuple[int, bytes, bytes], np.ndarray] = {}
+        self.style_weight = style_weight if model.style_layer is not None else 0.0
+        self.song_style = model.style_probs(self.music).mean(axis=0) if self.style_weight else None
+        self._motion: dict[tuple[int, bytes, bytes], tuple[np.ndarray, np.ndarray | float]] = {}
 
     def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
         """[F] cosine per figure on `bar`, whose `beats` song beats each figure (a start, a library beat, and clip
@@ -219,5 +235,8 @@ class FigureMatch:
         if key not in self._motion:
             position = starts[:, None] + ratios[:, None] * np.arange(beats + 1)[None, :]
             frames = beat_frames(self.library, np.clip(position, 0, len(self.library.beats) - 1))
-            self._motion[key] = self.model.embed_motion(motion_bars(self.frames, frames, self.library.fps))
-        return self._motion[key] @ self.music[bar]
+            embedded = self.model.embed_motion(motion_bars(self.frames, frames, self.library.fps))
+            away = 0.0 if self.song_style is None else 1.0 - self.model.style_probs(embedded) @ self.song_style
+            self._motion[key] = (embedded, self.style_weight * away)
+        embedded, away = self._motion[key]
+        return embedded @ self.music[bar] - away

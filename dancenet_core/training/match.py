@@ -114,7 +114,8 @@ def train_match(songs: Sequence[SongBars], *, context: int, steps: int, batch: i
                 weight_decay: float = 1e-4, style_weight: float = 0.0, balanced: bool = False, seed: int = 0,
                 log: Callable[[str], None] = print) -> tuple[MatchModel, list[float]]:
     """InfoNCE both ways on random batches of bars (a dance or its mirror image), with `style_weight` times a
-    style classifier's loss on both embeddings (a linear head, used in training only); `balanced`: bars drawn with
+    style classifier's loss on both embeddings (one linear head, kept with the model: `MatchModel.style_probs`);
+    `balanced`: bars drawn with
     each style equally likely. Adam, lr / 10 for the last quarter. Returns the model and the loss per tenth of the
     steps."""
     torch.manual_seed(seed)
@@ -159,8 +160,10 @@ def train_match(songs: Sequence[SongBars], *, context: int, steps: int, batch: i
             "noise": noise, "style_weight": style_weight, "balanced": balanced, "temperature": temperature, "lr": lr,
             "weight_decay": weight_decay, "seed": seed,
             "train_seconds": round(time.time() - t0)}
+    meta["styles"] = styles
+    head_layer = (head.weight.detach().numpy().copy(), head.bias.detach().numpy().copy())
     return MatchModel(mu.mean.numpy(), mu.std.numpy(), mo.mean.numpy(), mo.std.numpy(), mu.layers(), mo.layers(),
-                      meta), curve
+                      meta, head_layer), curve
 
 
 def retrieval(model: MatchModel, songs: Sequence[SongBars], candidates: int = 32, seed: int = 0) -> dict:
@@ -280,8 +283,9 @@ Settings were chosen on the validation songs (held out by song: `dancenet train 
 ## Settings
 
 InfoNCE both ways (each bar of music against the bar danced to it, the batch's other bars as negatives), temperature
-{m['temperature']}, plus {m['style_weight']} x a linear style classifier's loss on both embeddings (the training
-dances' four styles; the head is dropped after training), batches of {m['batch']} bars with every style equally
+{m['temperature']}, plus {m['style_weight']} x a linear style classifier's loss on both embeddings (one head for both,
+over the training dances' styles: {', '.join(m['styles'])}; shipped with the weights, the plan's style term reads
+it), batches of {m['batch']} bars with every style equally
 likely: {m['balanced']}; hidden layer {m['hidden']}, embedding {m['dim']}, dropout {m['dropout']}, input noise
 {m['noise']}, AdamW lr {m['lr']} (weight decay {m['weight_decay']}), {m['steps']} steps (lr / 10 for the last
 quarter), seed {m['seed']}; {m['train_seconds']} s on one CPU thread.

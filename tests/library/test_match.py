@@ -132,6 +132,10 @@ def test_the_real_match_scores_every_figure(library: MotionLibrary) -> None:
     s = fit.fit(3, starts, ratios, 4)
     assert s.shape == (len(starts),) and np.all(np.abs(s) <= 1.0 + 1e-6) and np.ptp(s) > 0
     assert np.array_equal(fit.fit(3, starts, ratios, 4), s)
+    styled = FigureMatch(model, library, music.features, bars, style_weight=10.0)
+    away = s - styled.fit(3, starts, ratios, 4)  # 10 x (1 - the figure's style probabilities . the part's)
+    assert np.all(away >= 0.0) and np.all(away <= 10.0 + 1e-6) and np.ptp(away) > 0
+    assert np.allclose(styled.song_style.sum(), 1.0) and len(styled.song_style) == len(model.meta["styles"])
 
 
 def test_the_engine_matches_a_library_without_style_labels_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
