@@ -11,7 +11,16 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..data.build import MODEL_FPS, build_dataset, dataset_cache_dir, fit_report, fitted_clip, fitted_motion
+from ..data.build import (
+    MODEL_FPS,
+    PairedSequence,
+    build_dataset,
+    dataset_cache_dir,
+    fit_report,
+    fitted_clip,
+    fitted_motion,
+    mean_skeleton,
+)
 from ..data.cmu_dance import read_cmu_manifest
 from ..data.dance_with_melody import load_positions, read_manifest
 from ..data.pack import save_pack
@@ -19,7 +28,11 @@ from ..data.show import draw_fit
 from ..data.split import load_split
 from ..environment import default_data_dir
 from ..evaluation.alignment import alignment_table, report
+from ..evaluation.metrics import floor_reach
 from ..evaluation.test_split import split_with_beats
+from ..floor import toe_ends
+from ..representation import decode
+from ..skeleton import Skeleton
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -64,6 +77,10 @@ def _cmd_build(args: argparse.Namespace) -> int:
             if p.seq in split[name]:
                 mins[p.style] = mins.get(p.style, 0.0) + len(p.motion) / MODEL_FPS / 60
         print(f"{name}: " + ", ".join(f"{k} {v:.1f} min" for k, v in sorted(mins.items())))
+    train = [p for p in pairs if p.seq in split["train"]]
+    reach = floor_reach_by_style(train, mean_skeleton(train))
+    print("floor reach of the training dances decoded on their average skeleton (share of 2-s windows whose lowest "
+          "toe end comes within 1.5 cm of the floor): " + ", ".join(f"{k} {v:.2f}" for k, v in reach.items()))
     data_dir = args.data or default_data_dir()
     out_dir = args.out or dataset_cache_dir()
     rows = []
@@ -77,6 +94,16 @@ def _cmd_build(args: argparse.Namespace) -> int:
           f"own-bone stretch is {f[:, 2].mean():.2f} cm, {100 * f[:, 2].mean() / f[:, 0].mean():.0f}% of it")
     _build_cmu(data_dir, out_dir)
     return 0
+
+
+def floor_reach_by_style(pairs: list[PairedSequence], skeleton: Skeleton) -> dict[str, float]:
+    """Mean floor reach (`metrics.floor_reach`) of the dances of each style, decoded on `skeleton` as training and
+    evaluation decode them: whether the dataset's dances stand on the floor."""
+    by: dict[str, list[float]] = {}
+    for p in pairs:
+        low = toe_ends(decode(p.motion, MODEL_FPS, skeleton))[:, :, 1].min(axis=1)
+        by.setdefault(p.style, []).append(floor_reach(low, MODEL_FPS))
+    return {s: float(np.mean(v)) for s, v in sorted(by.items())}
 
 
 def _build_cmu(data_dir: Path, out_dir: Path) -> None:
