@@ -80,3 +80,35 @@ def test_the_floor_pass_stands_a_hovering_dance_on_its_planted_feet() -> None:
     lowest = Motion(sunk.rotations, sunk.root_positions * [1, 0, 1] + placed[:, None] * [0, 1, 0], FPS,
                     sunk.skeleton).end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
     assert lowest.min() > -1e-6 and lowest.max() < 1e-3
+
+
+def test_the_shipped_model_dances_on_the_floor_with_planted_feet() -> None:
+    """Generate Dance with the shipped weights, with and without the foot clean-up: both stand on the floor in
+    nearly every 2-s window; the clean-up holds the predicted contacts still (the toes slide far less there) and
+    moves only the legs."""
+    from pathlib import Path
+
+    from dancenet_core.evaluation.metrics import floor_reach
+    from dancenet_core.generate import generate_dance
+    from dancenet_core.request import DanceRequest
+
+    song = Path(__file__).resolve().parents[1] / "examples" / "example_song.ogg"
+    dances = {f: generate_dance(DanceRequest(song, seed=3, end_s=20.0, style="cha-cha", footfix=f))
+              for f in (True, False)}
+    for f, d in dances.items():
+        toes = toe_ends(d.motions[0])
+        assert floor_reach(toes[:, :, 1].min(axis=1), d.motions[0].fps) >= 0.9, f
+    cleaned, raw = (dances[f].motions[0] for f in (True, False))
+    planted = dances[True].contacts[0] > 0.5
+    np.testing.assert_array_equal(planted, dances[False].contacts[0] > 0.5)  # same draws, same contacts
+
+    def planted_speed(m: Motion) -> float:
+        step = np.linalg.norm(np.diff(toe_ends(m)[:, :, [0, 2]], axis=0), axis=-1) * m.fps
+        both = planted[1:] & planted[:-1]
+        return float(step[both].mean())
+
+    assert planted_speed(cleaned) < 0.3 * planted_speed(raw)
+    legs = {JOINT_INDEX[f"{s}_{j}"] for s in ("left", "right") for j in ("hip", "knee", "ankle")}
+    changed = np.abs(cleaned.rotations - raw.rotations).max(axis=(0, 2)) > 1e-6
+    assert set(np.flatnonzero(changed)) <= legs
+    np.testing.assert_allclose(cleaned.root_positions[:, [0, 2]], raw.root_positions[:, [0, 2]], atol=1e-9)
