@@ -22,6 +22,8 @@ LEGS = (("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "ri
 BLEND_S = 0.12  # a hold eases in and out over at least this long (3 frames at 25 fps), so a foot never jumps
 EASE_SPEED = 0.5  # m/s: easing a hold in or out adds at most about this much to the foot's speed
 GAP_S = 1.0  # between two holds of one foot at most this far apart the shift goes straight from one to the other
+GROUND_M = 0.02
+STILL_MPS = 0.5
 MIN_RUN_S = 0.08  # a predicted contact shorter than this (one frame at 25 fps) is the model's flicker, not a step
 
 
@@ -95,6 +97,17 @@ def hold_offsets(toe_xz: np.ndarray, planted: np.ndarray, fps: float) -> np.ndar
             out[gap] = (c_e * _ease(1 - (gap - e) / (ease_len(c_e) + 1))[:, None]
                         + c_s * _ease(1 - (s - gap) / (ease_len(c_s) + 1))[:, None])
     return out
+
+
+def planted_feet(motion: Motion, contacts: np.ndarray) -> np.ndarray:
+    """Which foot stands on each frame [T, 2] (bool; left, right): where the model predicts a contact, and where a toe
+    end it did not plant is on the floor (within GROUND_M of it) and barely moving (under STILL_MPS): a foot left
+    standing still on the floor slides as much as a planted one when the body moves on."""
+    toes = fk_numpy(motion.skeleton.feet(), motion.rotations[:, :BODY_JOINTS], motion.root_positions,
+                    with_end_sites=True)[2]
+    step = np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1) * motion.fps
+    speed = np.concatenate([step[:1], step]) if len(step) else np.zeros(toes.shape[:2])  # frame 0 as frame 1
+    return (np.asarray(contacts) > 0.5) | ((toes[:, :, 1] < GROUND_M) & (speed < STILL_MPS))
 
 
 def lock_feet(motion: Motion, contacts: np.ndarray) -> Motion:

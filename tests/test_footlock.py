@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from dancenet_core.floor import contact_floor, floor_shift, toe_ends
-from dancenet_core.footlock import contact_runs, hold_offsets, lock_feet
+from dancenet_core.footlock import contact_runs, hold_offsets, lock_feet, planted_feet
 from dancenet_core.motion import Motion
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
@@ -65,6 +65,19 @@ def test_a_planted_foot_stays_put_and_only_the_legs_move() -> None:
         m.skeleton, locked.rotations, locked.root_positions)[1]
     a = JOINT_INDEX["left_ankle"]
     np.testing.assert_allclose(wr1[:, a], wr0[:, a], atol=1e-6)
+
+
+def test_a_foot_left_still_on_the_floor_counts_as_planted() -> None:
+    m = _gliding(lift=0.0)  # the toes on the floor, gliding at 0.5 m/s: too fast to count
+    none = np.zeros((m.num_frames, 2))
+    assert not planted_feet(m, none).any()
+    m.root_positions[40:60, [0, 2]] = m.root_positions[40, [0, 2]]  # the body stops for 0.8 s
+    planted = planted_feet(m, none)
+    assert planted[41:60].all() and not planted[:40].any() and not planted[61:].any()
+    predicted = none.copy()
+    predicted[5:10, 1] = 1
+    assert planted_feet(m, predicted)[5:10, 1].all()  # the model's contacts always count
+    assert not planted_feet(_gliding(lift=0.05), none).any()  # a still foot 5 cm up is not on the floor
 
 
 def test_the_floor_pass_stands_a_hovering_dance_on_its_planted_feet() -> None:

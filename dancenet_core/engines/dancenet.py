@@ -16,7 +16,7 @@ from ..constants import MIN_PART_S
 from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
 from ..floor import floor_shift
-from ..footlock import lock_feet
+from ..footlock import lock_feet, planted_feet
 from ..motion import Motion
 from ..music.features import FEATURE_SPEC, FeatureSpec, MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
@@ -68,20 +68,22 @@ FOOT_CLEANUP = "lock"
 
 def clean_feet(bundle: Bundle, feats: np.ndarray, cleanup: str | None = FOOT_CLEANUP,
                footfix_weights: Path | None = None) -> np.ndarray:
-    """Unnormalised features [T, D] -> the same with the feet cleaned by `cleanup` (one of CLEANUPS; None: none)
-    and the dance standing on the floor, frame by frame, where its predicted contacts say (`floor.floor_shift`,
-    with or without a clean-up). The contact lock writes the legs' rotations back into the features, so a
-    continued dance joins its kept frames the same way. `footfix_weights`: a foot model other than the shipped one."""
+    """Unnormalised features [T, D] -> the same standing on the floor, frame by frame, where its predicted contacts
+    say (`floor.floor_shift`, with or without a clean-up), and its feet cleaned by `cleanup` (one of CLEANUPS; None:
+    none). The contact lock holds the feet the model plants and those it leaves on the floor (`planted_feet`) and
+    writes the legs' rotations back into the features, so a continued dance joins its kept frames the same way.
+    `footfix_weights`: a foot model other than the shipped one."""
     if cleanup is not None and cleanup not in CLEANUPS:
         raise DanceNetError(f"unknown foot clean-up {cleanup!r}; choose from {', '.join(CLEANUPS)}")
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     out = foot_fixer(footfix_weights)(feats) if cleanup in ("model", "model+lock") else feats.copy()
     contacts = out[:, layout.contacts]
     motion = decode(out, bundle.model.cfg.fps, bundle.skeleton)
-    if cleanup in ("lock", "model+lock"):
-        motion = lock_feet(motion, contacts)
-        out[:, layout.rotations] = motion.rotations[:, 1:].reshape(len(out), -1)
     out[:, 1] += floor_shift(motion, contacts)
+    if cleanup in ("lock", "model+lock"):
+        motion.root_positions[:, 1] = out[:, 1]
+        locked = lock_feet(motion, planted_feet(motion, contacts))
+        out[:, layout.rotations] = locked.rotations[:, 1:].reshape(len(out), -1)
     return out
 
 
