@@ -251,6 +251,37 @@ class _Takes(_SubPanel):
                                   context.scene.dancenet, "take_index", rows=3)  # fmt: skip
 
 
+class _Figures(_SubPanel):
+    bl_label = "Figures"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        """Shown when the active take was cut from a motion library."""
+        return bool(_take_figures(context))
+
+    def draw(self, context: bpy.types.Context) -> None:
+        """What the active take is made of, to see and to credit: each figure's clip, where in the clip and where
+        in the song (seconds)."""
+        col = self.layout.column(align=True)
+        for f in _take_figures(context):
+            (c0, c1), (s0, s1) = f["clip_s"], f["song_s"]
+            col.label(text=f"{s0:6.1f}-{s1:.1f} s   {f['clip']}  {c0:.1f}-{c1:.1f} s")
+
+
+def _take_figures(context: bpy.types.Context) -> list[dict]:
+    """The active take's figures as its record keeps them ([] for a DanceNet take or any other action)."""
+    rig_obj = operators.export_target(context)
+    anim = rig_obj.animation_data if rig_obj is not None else None
+    info = takes.take_info(anim.action if anim is not None else None) or {}
+    figures = info.get("figures")
+    ok = isinstance(figures, list) and all(
+        isinstance(f, dict) and isinstance(f.get("clip"), str) and all(
+            isinstance(f.get(k), list) and len(f[k]) == 2 and all(isinstance(v, int | float) for v in f[k])
+            for k in ("clip_s", "song_s")) for f in figures)
+    return figures if ok else []
+
+
 class _Export(_SubPanel):
     bl_label = "Export"
     bl_options = {"DEFAULT_CLOSED"}
@@ -285,7 +316,7 @@ def make_sub_panels(parent: type[bpy.types.Panel]) -> tuple[type[bpy.types.Panel
             "bl_space_type": parent.bl_space_type, "bl_parent_id": parent.bl_idname,
             "bl_idname": f"{parent.bl_idname}_{fold.bl_label.lower()}",
         })  # fmt: skip
-        for fold in (_Music, _Dance, _Sections, _Rig, _Takes, _Export)
+        for fold in (_Music, _Dance, _Sections, _Rig, _Takes, _Figures, _Export)
     )
 
 

@@ -307,6 +307,7 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
         takes.store_take(action, motion, panel_settings(req) | {
             "song": str(req.song), "style": result.style, "start_s": result.start_s,
             "end_s": result.start_s + result.duration_s, "bone_map": bone_map, "continues": place.continues,
+            "figures": (result.details[k - 1] if k <= len(result.details) else {}).get("danced_figures", []),
         })  # fmt: skip
         actions.append(action)
         frames = max(frames, round(motion.duration * fps))

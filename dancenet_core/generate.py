@@ -25,7 +25,7 @@ from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
-from .returns import carry_on, dance_returns
+from .returns import carry_on, dance_returns, figures_as_danced
 from .rootmotion import apply_mode
 
 
@@ -167,6 +167,9 @@ def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRe
     for k, motion in enumerate(takes.motions):
         out, frame_map = dance_returns(motion, form, start_s, request.returns, keep, modes)
         motions.append(out)
+        if k < len(takes.details) and "danced_figures" in takes.details[k]:
+            takes.details[k]["danced_figures"] = figures_as_danced(takes.details[k]["danced_figures"], frame_map,
+                                                                   motion.fps, start_s)
         if k < len(takes.contacts):
             contacts.append(takes.contacts[k][np.round(frame_map).astype(int)])
     takes.motions, takes.contacts = motions, contacts

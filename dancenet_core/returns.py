@@ -140,3 +140,26 @@ def carry_on(head: Motion, dance: Motion, last: int) -> Motion:
                                 np.concatenate([head.root_positions[last - h:last], rest.root_positions[h:]]),
                                 dance.fps, dance.skeleton), h - 1)
     return splice(head[:last], rest, last, h)
+
+
+def figures_as_danced(figures: list[dict], frame_map: np.ndarray, fps: float, start_s: float) -> list[dict]:
+    """A plan's figures (`choreography.Report.figures`: clip, clip_s, song_s, ratio) as the take dances them once
+    its returns are danced again (`frame_map` from `dance_returns`): each run of frames that plays on through one
+    figure of the plan, with where in the song it now plays and where in its clip it starts and ends."""
+    if not figures or not len(frame_map):
+        return figures
+    song0 = np.array([f["song_s"][0] for f in figures])
+    planned = start_s + frame_map / fps  # where in the song the plan danced each frame
+    row = np.clip(np.searchsorted(song0, planned, side="right") - 1, 0, len(figures) - 1)
+    cut = np.flatnonzero((np.diff(row) != 0) | (np.abs(np.diff(frame_map) - 1.0) > 0.5)) + 1
+    out = []
+    for a, b in zip([0, *cut], [*cut, len(frame_map)], strict=True):
+        f = figures[row[a]]
+        (s0, s1), (c0, c1) = f["song_s"], f["clip_s"]
+
+        def clip_at(t: float, s0: float = s0, s1: float = s1, c0: float = c0, c1: float = c1) -> float:
+            return round(float(c0 + (c1 - c0) * np.clip((t - s0) / max(s1 - s0, 1e-9), 0.0, 1.0)), 3)
+
+        out.append({"clip": f["clip"], "clip_s": [clip_at(planned[a]), clip_at(planned[b - 1] + 1 / fps)],
+                    "song_s": [round(start_s + a / fps, 3), round(start_s + b / fps, 3)], "ratio": f["ratio"]})
+    return out

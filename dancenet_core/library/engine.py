@@ -96,7 +96,7 @@ class LibraryEngine:
         progress("dancing", 1.0)
         motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]
         return Takes(motions, chosen or ANY_STYLE, probs, timings=timings,
-                     details=[d.report.summary() for d in dances])
+                     details=[d.report.summary() | {"danced_figures": d.report.figures} for d in dances])
 
 
 def _after(kept: Motion, new: Motion) -> Motion:

@@ -106,3 +106,22 @@ def _heads(scene, rig, frames) -> np.ndarray:
         scene.frame_set(f)
         out.append([np.array(rig.matrix_world @ b.head) for b in rig.pose.bones])
     return np.array(out)
+
+
+def test_a_library_take_lists_its_figures(scene, addon, song, monkeypatch):
+    fake = make_fake_generator()
+    figures = [{"clip": "salsa/01.bvh", "clip_s": [3.0, 5.0], "song_s": [0.0, 1.0], "ratio": 1.0},
+               {"clip": "swing/07.bvh", "clip_s": [0.5, 2.5], "song_s": [1.0, 2.0], "ratio": 2.0}]
+
+    def with_figures(request, progress=None, should_cancel=None):
+        result = fake(request, progress, should_cancel)
+        result.details = [{"danced_figures": figures}]
+        return result
+
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: with_figures)
+    assert generate(scene, song, seed=3) == {"FINISHED"}
+    shot = panel_screenshot()
+    folds = {c.title: c for c in shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]).children
+             if getattr(c, "kind", "") == "panel"}
+    drawn = [w.text for w in shot.walk(folds["Figures"]) if w.text]
+    assert drawn == ["   0.0-1.0 s   salsa/01.bvh  3.0-5.0 s", "   1.0-2.0 s   swing/07.bvh  0.5-2.5 s"], drawn

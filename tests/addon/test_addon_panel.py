@@ -12,8 +12,8 @@ from scene_helpers import MM, bpy, build_armature, fk_world, generate, panel_scr
 
 from dancenet_core.skeleton import JOINT_NAMES
 
-FOLDS = ["Music", "Dance", "Sections", "Rig", "Takes", "Export"]
-SHOWN = [f for f in FOLDS if f != "Sections"]  # the stand-in generator reads no sections (test_addon_form.py)
+FOLDS = ["Music", "Dance", "Sections", "Rig", "Takes", "Figures", "Export"]
+SHOWN = [f for f in FOLDS if f not in ("Sections", "Figures")]  # no form, no library (test_addon_form.py)
 SUMMARY = "30 optional joints not on this rig (fingers: 30)"  # a Mixamo rig without its fingers
 
 

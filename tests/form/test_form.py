@@ -185,3 +185,20 @@ def test_the_command_line_reads_the_form_and_draws_it(arranged_song, tmp_path, c
                                                                                     "ABACAB")
     png = (tmp_path / "out" / "abacab_form.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and "abacab_form.png" in summary["files"]
+
+
+def test_the_library_engine_lists_each_figure_as_danced_returns_included(arranged_song):
+    result = generate_dance(DanceRequest(arranged_song, engine="library", seed=2))
+    figures = result.details[0]["danced_figures"]
+    starts = [f["song_s"][0] for f in figures]
+    ends = [f["song_s"][1] for f in figures]
+    assert starts[0] == pytest.approx(result.start_s) and ends[-1] == pytest.approx(result.duration_s, abs=0.05)
+    assert starts[1:] == pytest.approx(ends[:-1])  # one after another, the whole dance
+    assert all(f["clip"].endswith(".bvh") and f["clip_s"][0] <= f["clip_s"][1] for f in figures)
+    a1, a2 = (next(s for s in result.form.sections if s.name == n) for n in ("A1", "A2"))
+
+    def clips(section) -> list[tuple[str, float]]:
+        return [(f["clip"], round(f["clip_s"][0], 1)) for f in figures
+                if section.start_s + 0.5 <= f["song_s"][0] < section.end_s - 0.5]
+
+    assert clips(a2) == clips(a1) and len(clips(a1)) >= 4  # the return is the same figures, from the same places
