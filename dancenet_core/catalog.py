@@ -12,7 +12,7 @@ what a catalog needs around it:
   cut off by a kill, made for other settings) is made again; a killed run leaves whole files only (each is
   renamed into place);
 - the user's files: a folder with no record of ours is never written into; the song takes the next free name;
-- a status table, `batch.csv` and `batch.json` in the output folder, rewritten whole as each song ends;
+- a status table, `batch.csv` and `batch.json` in the output folder, rewritten whole as songs end;
 - where the songs run: in this process (`inline`: Blender), in `--jobs` worker processes of this machine
   (`local`), or as tasks on a Ray cluster (`ray`), where the driver reads each song and sends its bytes, and
   the task sends the files back for the driver to write: the nodes share no folder.
@@ -48,7 +48,6 @@ from .outputs import check_folder_writable, claimed_outputs, safe_stem
 from .request import check_song_path, options
 
 RECORDS = ".batch"  # in the output folder: <song folder>.json, the song and request its files were made for
-STATUS_FILES = ("batch.csv", "batch.json")
 COLUMNS = ("song", "folder", "status", "style", "tempo_bpm", "frames", "duration_s", "takes", "seconds",
            "peak_memory_mb", "error")
 # What a finished song's record keeps for the status table of a later run that skips it.
@@ -333,11 +332,16 @@ def peak_memory_mb() -> float | None:
 
 
 class Status:
-    """The status table, one row a song in the catalog's order, rewritten whole (`batch.csv`, `batch.json`)."""
+    """The status table, one row a song in the catalog's order, rewritten whole (`batch.csv`, `batch.json`): as
+    songs end, at most once every `EVERY_S` seconds (a catalog of 40,000 songs is megabytes a write), and at the
+    end however the run ends."""
+
+    EVERY_S = 1.0
 
     def __init__(self, out: Path, songs: list[CatalogSong]) -> None:
         self.out = out
         self.rows = [{"song": s.label, "folder": s.folder, "status": "pending"} for s in songs]
+        self.written = -self.EVERY_S
 
     def set(self, index: int, row: dict[str, Any]) -> None:
         self.rows[index] = {**self.rows[index], **{k: v for k, v in row.items() if k in COLUMNS}}
@@ -348,7 +352,11 @@ class Status:
             counts[row["status"]] += 1
         return counts
 
-    def write(self) -> None:
+    def write(self, now: bool = True) -> None:
+        """Write the table (`now`), or only if `EVERY_S` seconds have passed since it was last written."""
+        if not now and time.monotonic() - self.written < self.EVERY_S:
+            return
+        self.written = time.monotonic()
         table = [{c: row.get(c) for c in COLUMNS} for row in self.rows]
         write_text(self.out / "batch.json", json.dumps({"counts": self.counts(), "songs": table}, indent=1) + "\n")
         text = io.StringIO()
@@ -380,7 +388,7 @@ def run_catalog(songs: list[CatalogSong], out: Path, task: SongTask, *, where: W
 
     def ended(i: int, row: dict[str, Any]) -> None:
         status.set(i, row)
-        status.write()
+        status.write(now=False)
         tell(songs[i], {**row, **status.rows[i]})
 
     plan = []  # (index, song, request id, the row of a song that cannot be read)
@@ -397,19 +405,22 @@ def run_catalog(songs: list[CatalogSong], out: Path, task: SongTask, *, where: W
         else:
             plan.append((i, song, rid, None))
     status.write()
-    if where == "inline":  # one after the other, in the list's order
-        for i, song, rid, unread in plan:
-            ended(i, unread or dance_song(task, song, out, rid))
+    try:
+        if where == "inline":  # one after the other, in the list's order
+            for i, song, rid, unread in plan:
+                ended(i, unread or dance_song(task, song, out, rid))
+            return status
+        for i, _song, _rid, unread in plan:
+            if unread:
+                ended(i, unread)
+        todo = [(i, song, rid) for i, song, rid, unread in plan if not unread]
+        if where == "local":
+            _run_local(todo, task, out, jobs, ended)
+        else:
+            _run_ray(todo, task, out, jobs, address, ended)
         return status
-    for i, _song, _rid, unread in plan:
-        if unread:
-            ended(i, unread)
-    todo = [(i, song, rid) for i, song, rid, unread in plan if not unread]
-    if where == "local":
-        _run_local(todo, task, out, jobs, ended)
-    else:
-        _run_ray(todo, task, out, jobs, address, ended)
-    return status
+    finally:
+        status.write()
 
 
 def _run_local(todo: list, task: SongTask, out: Path, jobs: int,
