@@ -1,10 +1,12 @@
 """Share of a dance's frames from clips of the song's own style, the library's style labels hidden: the training
 dances as a user's library (BVH, a folder per style, no music; built as `dancenet library build` builds one),
 danced to the validation songs (the library without them: settings are chosen there) or to the test songs, with
-the learned match of music and movement at each weight given and without it (0: energy matching alone).
+the learned match of music and movement at each pair of weights given (its cosine per bar, its style term) and
+without it (--match 0 with the style term 0: energy matching alone).
 
-    .venv/bin/python scripts/match_style_share.py --songs validation --weights runs/match_validate.npz --match 0 1 2 4
-    .venv/bin/python scripts/match_style_share.py --songs test --match 0 2
+    .venv/bin/python scripts/match_style_share.py --songs validation --weights runs/match_validate.npz \
+        --match 0 1 2 --match-style 0 10 20
+    .venv/bin/python scripts/match_style_share.py --songs test --match 0 --match-style 20
 """
 
 from __future__ import annotations
@@ -30,8 +32,8 @@ def main() -> None:
     p.add_argument("--match", type=float, nargs="+", default=[0.0, DEFAULT_SETTINGS.match],
                    help="weights of the match's cost (0: without the match)")
     p.add_argument("--takes", type=int, default=1)
-    p.add_argument("--match-style", type=float, default=DEFAULT_SETTINGS.match_style,
-                   help="weight of the match's style term (Settings.match_style)")
+    p.add_argument("--match-style", type=float, nargs="+", default=[DEFAULT_SETTINGS.match_style],
+                   help="weights of the match's style term (Settings.match_style), each tried with each --match")
     args = p.parse_args()
     data = default_data_dir()
     split = load_split()
@@ -42,13 +44,14 @@ def main() -> None:
     library = users_library([pairs[s] for s in library_seqs], mean_skeleton(list(pairs.values())), MODEL_FPS)
     model = MatchModel.load(args.weights)
     out = {"songs": args.songs, "library_clips": library.num_clips, "library_min": round(library.duration_s / 60, 1)}
-    for w in args.match:
+    for w, ws in [(0.0, 0.0)] * (0.0 in args.match) + [(w, ws) for w in args.match for ws in args.match_style
+                                                        if w > 0 or ws > 0]:
         t = time.perf_counter()
         r = own_style_share(library, [pairs[s] for s in songs], data, MODEL_FPS, args.takes,
-                            model if w > 0 else None,
-                            dataclasses.replace(DEFAULT_SETTINGS, match=w, match_style=args.match_style))
-        r["seconds"] = round(time.perf_counter() - t, 1)
-        out[f"match_{w:g}"] = r
+                            model if w > 0 or ws > 0 else None,
+                            dataclasses.replace(DEFAULT_SETTINGS, match=w, match_style=ws))
+        r.update(match=w, match_style=ws, seconds=round(time.perf_counter() - t, 1))
+        out[f"match_{w:g}_style_{ws:g}"] = r
         print(json.dumps({k: v for k, v in r.items() if k != "per_dance"}), flush=True)
     print(json.dumps(out))
 

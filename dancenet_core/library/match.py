@@ -213,30 +213,47 @@ def cached_frames(library: MotionLibrary) -> np.ndarray:
 
 
 class FigureMatch:
-    """How well each figure of a plan fits each bar of the song: the cosine of the bar's music embedding and the
-    embedding of the figure's motion over the clip beats the figure lays on that bar, less `style_weight` times how
-    far the figure's style (the training styles' probabilities of its motion) is from the style the whole part's
-    music has (the mean of its bars' probabilities): a bar alone often sounds like another style, the part
-    seldom does."""
+    """How well each figure of a plan fits the song: on each bar, the cosine of the bar's music embedding and the
+    embedding of the figure's motion over the clip beats the figure lays on that bar (`fit`); over the whole part,
+    how much less probable the style of the figure's clip (the most probable of the training styles over its
+    figures' motion) is than the most probable style of the part's music (the mean of its bars' probabilities;
+    `style_away`): a bar alone often sounds like another style, the part seldom does, and a clip is danced in one
+    style."""
 
     def __init__(self, model: MatchModel, library: MotionLibrary, features: np.ndarray,
-                 bar_beats: list[np.ndarray], style_weight: float = 0.0) -> None:
+                 bar_beats: list[np.ndarray]) -> None:
         self.model, self.library = model, library
         self.frames = cached_frames(library)
         self.music = model.embed_music(music_bars(features, bar_beats, model.context))
-        self.style_weight = style_weight if model.style_layer is not None else 0.0
-        self.song_style = model.style_probs(self.music).mean(axis=0) if self.style_weight else None
-        self._motion: dict[tuple[int, bytes, bytes], tuple[np.ndarray, np.ndarray | float]] = {}
+        song = model.style_probs(self.music).mean(axis=0) if model.style_layer is not None else None
+        self.song_style = None if song is None else song / song.max()  # its most probable style: 1
+        self._motion: dict[tuple[int, bytes, bytes], np.ndarray] = {}
 
-    def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
-        """[F] cosine per figure on `bar`, whose `beats` song beats each figure (a start, a library beat, and clip
-        beats per song beat) lays clip beats on evenly; figures on bars of as many beats are embedded once."""
+    def _embedded(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        """[F, E] each figure's motion over `beats` song beats (figures on bars of as many beats embedded once)."""
         key = (beats, starts.tobytes(), ratios.tobytes())
         if key not in self._motion:
             position = starts[:, None] + ratios[:, None] * np.arange(beats + 1)[None, :]
             frames = beat_frames(self.library, np.clip(position, 0, len(self.library.beats) - 1))
-            embedded = self.model.embed_motion(motion_bars(self.frames, frames, self.library.fps))
-            away = 0.0 if self.song_style is None else 1.0 - self.model.style_probs(embedded) @ self.song_style
-            self._motion[key] = (embedded, self.style_weight * away)
-        embedded, away = self._motion[key]
-        return embedded @ self.music[bar] - away
+            self._motion[key] = self.model.embed_motion(motion_bars(self.frames, frames, self.library.fps))
+        return self._motion[key]
+
+    def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        """[F] cosine per figure on `bar`, whose `beats` song beats each figure (a start, a library beat, and clip
+        beats per song beat) lays clip beats on evenly."""
+        return self._embedded(starts, ratios, beats) @ self.music[bar]
+
+    def style_away(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        """[F] in [0, 1]: 1 less the part's probability of each figure's clip's style over its most probable's (0
+        for weights without a style head)."""
+        if self.song_style is None:
+            return np.zeros(len(starts))
+        return 1.0 - self.song_style[self._clip_styles(starts, self._embedded(starts, ratios, beats))]
+
+    def _clip_styles(self, starts: np.ndarray, embedded: np.ndarray) -> np.ndarray:
+        """[F]: the style of each figure's clip, the most probable over its figures (a style is the clip's, not a
+        bar's: its figures share it, so that the plan keeps to the style and not to a clip's most typical bars)."""
+        clip = self.library.beat_clip[starts]
+        probs = self.model.style_probs(embedded)
+        sums = np.stack([np.bincount(clip, probs[:, k], self.library.num_clips) for k in range(probs.shape[1])], 1)
+        return sums.argmax(axis=1)[clip]

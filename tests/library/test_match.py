@@ -110,6 +110,9 @@ class _Prefers:
     def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
         return np.where(self.library.beat_clip[starts] == self.clip, 1.0, -1.0)
 
+    def style_away(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        return np.zeros(len(starts))
+
 
 def test_the_plan_takes_the_figures_the_match_prefers(library: MotionLibrary, monkeypatch: pytest.MonkeyPatch
                                                       ) -> None:
@@ -118,8 +121,22 @@ def test_the_plan_takes_the_figures_the_match_prefers(library: MotionLibrary, mo
     assert len({f["clip"] for f in plain.report.figures}) > 1
     monkeypatch.setattr("dancenet_core.library.choreography.FigureMatch", lambda *a: _Prefers(library, 2))
     model = _made_up_model(1, 1)  # not read by the stand-in
-    matched = choreograph(library, music, seed=0, settings=Settings(match=20.0), match=model)[0]
+    matched = choreograph(library, music, seed=0, settings=Settings(match=20.0, match_style=0.0), match=model)[0]
     assert {f["clip"] for f in matched.report.figures} == {"clip2"}
+
+
+class _OfStyle(_Prefers):
+    """A stand-in for the match whose part sounds like one clip's style only."""
+
+    def style_away(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
+        return np.where(self.library.beat_clip[starts] == self.clip, 0.0, 1.0)
+
+
+def test_the_plan_keeps_to_the_style_the_match_hears(library: MotionLibrary, monkeypatch: pytest.MonkeyPatch
+                                                     ) -> None:
+    monkeypatch.setattr("dancenet_core.library.choreography.FigureMatch", lambda *a: _OfStyle(library, 1))
+    dance = choreograph(library, song(40, 110), seed=0, match=_made_up_model(1, 1))[0]  # the default settings
+    assert {f["clip"] for f in dance.report.figures} == {"clip1"}
 
 
 def test_the_real_match_scores_every_figure(library: MotionLibrary) -> None:
@@ -132,10 +149,11 @@ def test_the_real_match_scores_every_figure(library: MotionLibrary) -> None:
     s = fit.fit(3, starts, ratios, 4)
     assert s.shape == (len(starts),) and np.all(np.abs(s) <= 1.0 + 1e-6) and np.ptp(s) > 0
     assert np.array_equal(fit.fit(3, starts, ratios, 4), s)
-    styled = FigureMatch(model, library, music.features, bars, style_weight=10.0)
-    away = s - styled.fit(3, starts, ratios, 4)  # 10 x (1 - the figure's style probabilities . the part's)
-    assert np.all(away >= 0.0) and np.all(away <= 10.0 + 1e-6) and np.ptp(away) > 0
-    assert np.allclose(styled.song_style.sum(), 1.0) and len(styled.song_style) == len(model.meta["styles"])
+    away = fit.style_away(starts, ratios, 4)  # 1 - the part's probability of the clip's style over its top one
+    assert np.all(away >= -1e-9) and np.all(away <= 1.0 + 1e-9)
+    clips = library.beat_clip[starts]
+    assert all(np.ptp(away[clips == c]) < 1e-9 for c in set(clips))  # a clip's figures share its style
+    assert fit.song_style.max() == 1.0 and len(fit.song_style) == len(model.meta["styles"])
 
 
 def test_the_engine_matches_a_library_without_style_labels_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
