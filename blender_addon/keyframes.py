@@ -14,7 +14,7 @@ where the dance puts them, scaled like the hips, on a rig whose limbs are longer
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -131,6 +131,118 @@ def _floor_tracks(rest: np.ndarray, a: np.ndarray, o: np.ndarray, turn: np.ndarr
     return _continuous_quaternions(basis[:, :3, :3]), basis[:, :3, 3]
 
 
+class _Fit:
+    """The dance fitted onto a rig, what every bone's pose is computed from: the rig's world rest matrices, our
+    rest joints and its mapped bones' heads in Blender's axes, the turn of our character frame onto the rig's
+    (`frame_turn`), the size of its legs to ours (`scale`), each mapped joint's turn from our rest bone direction
+    onto the rig's (`rest_turns`), where a bone stands for joints the rig lacks (`spans`), and the dance's FK."""
+
+    def __init__(self, rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str]) -> None:
+        skeleton = self.skeleton = motion.skeleton
+        self.mapped = {skeleton.index(joint): bone for joint, bone in bone_map.items()}
+        self.joint_of = {bone: j for j, bone in self.mapped.items()}
+        world = np.array(rig.matrix_world)
+        self.rest = {b.name: world @ np.array(b.matrix_local) for b in rig.data.bones}
+        up = rigdef.Y_UP_TO_Z_UP
+        self.ours = rigdef.rest_heads(skeleton) @ up.T
+        self.theirs = {j: self.rest[b][:3, 3] for j, b in self.mapped.items()}
+        frame_keys = [skeleton.index(n) for n in ("left_hip", "right_hip", "pelvis", "neck")]
+        self.frame_turn = (character_frame(*(self.theirs[k] for k in frame_keys))
+                           @ character_frame(*(self.ours[k] for k in frame_keys)).T)
+        self.scale = _leg_length(self.theirs, skeleton) / _leg_length(dict(enumerate(self.ours)), skeleton)
+        self.rest_turns: dict[int, np.ndarray] = {}
+        self.spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig lacks
+        pairs = bone_directions(skeleton, self.theirs, {j: self.rest[b][:3, 1] for j, b in self.mapped.items()})
+        for j, pair in pairs.items():
+            self.rest_turns[j] = min_rotation(pair.theirs, self.frame_turn @ up @ pair.ours)
+            if pair.reach is not None:
+                self.spans[j] = pair.reach
+        self.positions, turns = fk_numpy(skeleton, motion.rotations, motion.root_positions)
+        self.to_rig = self.frame_turn @ up
+        self.world_turns = self.to_rig @ turns @ self.to_rig.T  # in Blender axes, on the rig's own frame
+        # The dance is scaled onto the rig about the hips, where the legs start, not about the pelvis bone's
+        # head: rigs put that head anywhere from above the hips (ours) to below them (Rigify's), and scaling
+        # about it would send the feet into the floor or leave them hanging above it.
+        self.hips = [skeleton.index(f"{side}_hip") for side in ("left", "right")]
+        self.hips_theirs = (self.theirs[self.hips[0]] + self.theirs[self.hips[1]]) / 2
+        self.hips_ours = self.ours[self.hips].mean(axis=0)
+
+    def placed(self, points: np.ndarray) -> np.ndarray:
+        """Where points of the dance [..., 3] (our FK, Y up) go on the rig."""
+        return self.hips_theirs + self.scale * (points @ rigdef.Y_UP_TO_Z_UP.T - self.hips_ours) @ self.frame_turn.T
+
+    def aim(self, j: int, bone: str) -> np.ndarray:
+        """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest. A bone
+        that stands for joints the rig lacks too (a spine of fewer bones) also takes their bend: it points where
+        the dance puts the joint it reaches, so the missing bone's turn is spread over the ones present."""
+        rest = self.rest[bone][:3, :3]
+        turn = self.world_turns[:, j] @ (self.rest_turns[j] @ (rest / np.linalg.norm(rest, axis=0)))
+        if j in self.spans:
+            k = self.spans[j]
+            reaching = self.frame_turn @ (self.ours[k] - self.ours[j])
+            turn = min_rotation(np.einsum("tij,j->ti", self.world_turns[:, j], reaching),
+                                (self.positions[:, k] - self.positions[:, j]) @ self.to_rig.T) @ turn
+        return turn
+
+    def head_offset(self, parent: str, child: str) -> np.ndarray:
+        """Where `child`'s head sits in `parent`'s posed world frame (bones in between at rest)."""
+        offset = (np.linalg.inv(self.rest[parent]) @ self.rest[child])[:3, 3]
+        return offset * np.linalg.norm(self.rest[parent][:3, :3], axis=0)
+
+    def root_target(self) -> np.ndarray:
+        """Where the pelvis bone's head goes [T, 3]: where it must be for the hips, which it carries, to be
+        where the dance puts them."""
+        pelvis = self.mapped[0]
+        pelvis_turn = self.aim(0, pelvis) @ rotation_part(self.rest[pelvis]).T
+        hips = self.placed(self.positions[:, self.hips].mean(axis=1))
+        return hips - pelvis_turn @ (self.hips_theirs - self.theirs[0])
+
+
+def _top_down(rig: bpy.types.Object, bones: Iterable[str],
+              parents: dict[str, str | None] | None) -> list[tuple[str, str | None]]:
+    """`bones` and every bone above them, each with its parent, parents first. `parents` (bone -> bone)
+    stands for the armature's parenting where constraints, not parents, chain the bones (a control rig)."""
+
+    def parent_of(name: str) -> str | None:
+        if parents is not None:
+            return parents[name]
+        return None if rig.data.bones[name].parent is None else rig.data.bones[name].parent.name
+
+    depth: dict[str, int] = {}
+
+    def depth_of(name: str) -> int:
+        if name not in depth:
+            up = parent_of(name)
+            depth[name] = 0 if up is None else depth_of(up) + 1
+        return depth[name]
+
+    for bone in bones:
+        depth_of(bone)
+    return [(name, parent_of(name)) for name in sorted(depth, key=depth.__getitem__)]
+
+
+def _limb_aim(fit: _Fit, name: str, j: int, at_rest: np.ndarray, target: np.ndarray,
+              limb_turn: dict[str, np.ndarray]) -> np.ndarray:
+    """An upper limb bone's world rotation turned so that the hand or foot goes where the dance puts it (scaled
+    like the hips), whatever the rig's limb proportions: the angles alone would put it elsewhere on a rig
+    built unlike our dancer. The lower bone's extra turn goes into `limb_turn`."""
+    limb = _LIMBS.get(fit.skeleton.names[j])
+    if limb is None or not all(fit.skeleton.index(x) in fit.mapped for x in limb):
+        return target
+    mid, end = (fit.skeleton.index(x) for x in limb)
+    lower, end_bone = fit.mapped[mid], fit.mapped[end]
+    p_upper = at_rest[:, :3, 3] * np.ones((len(fit.positions), 1))
+    p_mid = p_upper + target @ fit.head_offset(name, lower)
+    p_end = p_mid + fit.aim(mid, lower) @ fit.head_offset(lower, end_bone)
+    turn_upper, limb_turn[lower] = _reach(p_upper, p_mid, p_end, fit.placed(fit.positions[:, end]))
+    return turn_upper @ target
+
+
+def _root_locations(at_rest: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The travel bone's locations [T, 3] (in its rest frame) that move it by world `offset` [T, 3]."""
+    return (np.linalg.inv(at_rest[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
+
+
 def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
              floor: tuple[str, np.ndarray, np.ndarray] | None = None,
              parents: dict[str, str | None] | None = None) -> PoseTracks:
@@ -142,132 +254,45 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
     root bone, and the root bone is keyed to carry it along the floor. `parents` (mapped bone -> mapped bone)
     stands for the armature's parenting where constraints, not parents, chain the bones (a control rig).
     """
-    skeleton = motion.skeleton
-    mapped = {skeleton.index(joint): bone for joint, bone in bone_map.items()}
-    joint_of = {bone: j for j, bone in mapped.items()}
-    bones = rig.data.bones
-    world = np.array(rig.matrix_world)
-    rest = {b.name: world @ np.array(b.matrix_local) for b in bones}
-    c = rigdef.Y_UP_TO_Z_UP
-
-    ours = rigdef.rest_heads(skeleton) @ c.T
-    theirs = {j: rest[b][:3, 3] for j, b in mapped.items()}
-    frame_keys = [skeleton.index(n) for n in ("left_hip", "right_hip", "pelvis", "neck")]
-    q = (
-        character_frame(*(theirs[k] for k in frame_keys))
-        @ character_frame(*(ours[k] for k in frame_keys)).T
-    )
-    scale = _leg_length(theirs, skeleton) / _leg_length(dict(enumerate(ours)), skeleton)
-
-    delta: dict[int, np.ndarray] = {}
-    spans: dict[int, int] = {}  # joint -> the mapped joint its bone reaches past joints the rig has no bone for
-    pairs = bone_directions(skeleton, theirs, {j: rest[b][:3, 1] for j, b in mapped.items()})
-    for j, pair in pairs.items():
-        delta[j] = min_rotation(pair.theirs, q @ c @ pair.ours)
-        if pair.reach is not None:
-            spans[j] = pair.reach
-
-    p, w = fk_numpy(skeleton, motion.rotations, motion.root_positions)
-    qc = q @ c
-    g = qc @ w @ qc.T  # world turns, in Blender axes, on the rig's own frame
-    # The dance is scaled onto the rig about the hips, where the legs start, not about the pelvis bone's head:
-    # rigs put that head anywhere from above the hips (ours) to below them (Rigify's), and scaling about it
-    # would send the feet into the floor or leave them hanging above it.
-    hips = [skeleton.index(f"{side}_hip") for side in ("left", "right")]
-    hips_theirs = (theirs[hips[0]] + theirs[hips[1]]) / 2
-    hips_ours = ours[hips].mean(axis=0)
-
-    def placed(points: np.ndarray) -> np.ndarray:
-        """Where points of the dance [..., 3] (our FK, Y up) go on the rig."""
-        return hips_theirs + scale * (points @ c.T - hips_ours) @ q.T
-
-    def aim(j: int, bone: str) -> np.ndarray:
-        """Bone `bone`'s world rotation (unit scale) [T, 3, 3] for joint j: the dance's turn of its rest. A bone
-        that stands for joints the rig lacks too (a spine of fewer bones) also takes their bend: it points where
-        the dance puts the joint it reaches, so the missing bone's turn is spread over the ones present."""
-        turn = g[:, j] @ (delta[j] @ (rest[bone][:3, :3] / np.linalg.norm(rest[bone][:3, :3], axis=0)))
-        if j in spans:
-            k = spans[j]
-            turn = min_rotation(np.einsum("tij,j->ti", g[:, j], q @ (ours[k] - ours[j])),
-                                  (p[:, k] - p[:, j]) @ qc.T) @ turn
-        return turn
-
-    # The pelvis bone's head goes where it must for the hips, which it carries, to be where the dance puts them.
-    pelvis_turn = aim(0, mapped[0]) @ rotation_part(rest[mapped[0]]).T
-    root_target = placed(p[:, hips].mean(axis=1)) - pelvis_turn @ (hips_theirs - theirs[0])
-
-    def head_offset(parent: str, child: str) -> np.ndarray:
-        """Where `child`'s head sits in `parent`'s posed world frame (bones in between at rest)."""
-        return (np.linalg.inv(rest[parent]) @ rest[child])[:3, 3] * np.linalg.norm(rest[parent][:3, :3], axis=0)
-
-    limb_turn: dict[str, np.ndarray] = {}  # lower limb bone -> its extra world turn from the limb's IK
-
-    def parent_of(name: str) -> str | None:
-        if parents is not None:
-            return parents[name]
-        return None if bones[name].parent is None else bones[name].parent.name
-
-    depth: dict[str, int] = {}  # the mapped bones and the bones above them -> how many bones are above
-
-    def depth_of(name: str) -> int:
-        if name not in depth:
-            up = parent_of(name)
-            depth[name] = 0 if up is None else depth_of(up) + 1
-        return depth[name]
-
-    for bone in mapped.values():
-        depth_of(bone)
+    fit = _Fit(rig, motion, bone_map)
+    frames = motion.num_frames
+    root_target = fit.root_target()
     travel = _travel_bone(rig, bone_map)
     posed: dict[str, np.ndarray] = {}  # bone -> world matrices [T or 1, 4, 4]
     rotations: dict[str, np.ndarray] = {}
-    root_locations = np.zeros((motion.num_frames, 3))
-    for name in sorted(depth, key=depth.__getitem__):
-        parent = parent_of(name)
-        if parent is None:
-            identity_pose = rest[name][None]
-        else:
-            identity_pose = posed[parent] @ (np.linalg.inv(rest[parent]) @ rest[name])
-        j = joint_of.get(name)
-        if name == travel != mapped[0]:  # above the hips and the spine: it carries the body to where the hips go
-            offset = root_target - theirs[0]
-            posed[name] = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()
+    limb_turn: dict[str, np.ndarray] = {}  # lower limb bone -> its extra world turn from the limb's IK
+    root_locations = np.zeros((frames, 3))
+    for name, parent in _top_down(rig, fit.mapped.values(), parents):
+        rest = fit.rest[name]
+        at_rest = rest[None] if parent is None else posed[parent] @ (np.linalg.inv(fit.rest[parent]) @ rest)
+        j = fit.joint_of.get(name)
+        if name == travel != fit.mapped[0]:  # above the hips and the spine: it carries the body to where the hips go
+            offset = root_target - fit.theirs[0]
+            posed[name] = np.broadcast_to(at_rest, (frames, 4, 4)).copy()
             posed[name][:, :3, 3] += offset
-            root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
+            root_locations = _root_locations(at_rest, offset)
             continue
         if j is None:
-            posed[name] = identity_pose
+            posed[name] = at_rest
             continue
         # The bone's world scale (the object's, e.g. 0.01 for a Mixamo import) is the same in every pose.
-        scale_xyz = np.linalg.norm(rest[name][:3, :3], axis=0)
-        target = aim(j, name)
+        scale_xyz = np.linalg.norm(rest[:3, :3], axis=0)
+        target = fit.aim(j, name)
         if name in limb_turn:
             target = limb_turn[name] @ target
-        limb = _LIMBS.get(skeleton.names[j])
-        if limb is not None and all(skeleton.index(x) in mapped for x in limb):
-            # Hands and feet go where the dance puts them (scaled like the hips), whatever the rig's limb
-            # proportions: the angles alone would put them elsewhere on a rig built unlike our dancer.
-            jm, je = (skeleton.index(x) for x in limb)
-            lower, end = mapped[jm], mapped[je]
-            p_upper = identity_pose[:, :3, 3] * np.ones((motion.num_frames, 1))
-            p_mid = p_upper + target @ head_offset(name, lower)
-            p_end = p_mid + aim(jm, lower) @ head_offset(lower, end)
-            want = placed(p[:, je])
-            turn_upper, limb_turn[lower] = _reach(p_upper, p_mid, p_end, want)
-            target = turn_upper @ target
-        basis = np.swapaxes(identity_pose[:, :3, :3] / scale_xyz, -1, -2) @ target
-        rotations[name] = _continuous_quaternions(basis)
-        m = np.broadcast_to(identity_pose, (motion.num_frames, 4, 4)).copy()
-        m[:, :3, :3] = target * scale_xyz
+        target = _limb_aim(fit, name, j, at_rest, target, limb_turn)
+        rotations[name] = _continuous_quaternions(np.swapaxes(at_rest[:, :3, :3] / scale_xyz, -1, -2) @ target)
+        posed[name] = np.broadcast_to(at_rest, (frames, 4, 4)).copy()
+        posed[name][:, :3, :3] = target * scale_xyz
         if j == 0 and name == travel:
-            offset = root_target - identity_pose[:, :3, 3]
-            root_locations = (np.linalg.inv(identity_pose[:, :3, :3]) @ offset[:, :, None])[:, :, 0]
-            m[:, :3, 3] = root_target
-        posed[name] = m
-    tracks = PoseTracks(rotations, travel, root_locations, world={b: posed[b] for b in mapped.values()})
+            root_locations = _root_locations(at_rest, root_target - at_rest[:, :3, 3])
+            posed[name][:, :3, 3] = root_target
+    tracks = PoseTracks(rotations, travel, root_locations, world={b: posed[b] for b in fit.mapped.values()})
     if floor is not None:
         root, points, yaw = floor
-        a = scale * qc
-        tracks.floor_bone = (root, *_floor_tracks(rest[root], a, hips_theirs - scale * q @ hips_ours, qc, points, yaw))
+        origin = fit.hips_theirs - fit.scale * fit.frame_turn @ fit.hips_ours
+        tracks.floor_bone = (root, *_floor_tracks(fit.rest[root], fit.scale * fit.to_rig, origin, fit.to_rig, points,
+                                                  yaw))
     return tracks
 
 
@@ -435,33 +460,13 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
         motion, points, yaw = split_root(motion)
         floor = (controls.floor, points, yaw)
     dance = retarget(rig, motion, bone_map, floor, _joint_parents(motion.skeleton, bone_map))
-    # The bone measured per joint, and where the dance wants it (its rest offset from the mapped bone kept).
+    measured, targets = _control_targets(rig, dance, bone_map, controls)
     data = rig.data.bones
-    measured = {j: bone_map[j] for j in controls.controls}
-    if controls.exact is not None:
-        deform, exact = controls.exact
-        for j, bone in measured.items():
-            twin = exact + bone.removeprefix(deform)
-            if j not in controls.aimed and bone.startswith(deform) and twin in data:
-                measured[j] = twin
-    to_armature = np.linalg.inv(np.array(rig.matrix_world))
-    targets = {j: to_armature @ dance.world[bone_map[j]] @ np.linalg.inv(np.array(data[bone_map[j]].matrix_local))
-               @ np.array(data[measured[j]].matrix_local) for j in controls.controls}
-    if dance.floor_bone is not None:  # the dance was retargeted as seen from the floor control at rest
-        _, quats, locations = dance.floor_bone
-        rest = np.array(rig.data.bones[controls.floor].matrix_local)
-        carry = np.broadcast_to(np.eye(4), (dance.num_frames, 4, 4)).copy()
-        carry[:, :3, :3] = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()
-        carry[:, :3, 3] = locations
-        carry = rest @ carry @ np.linalg.inv(rest)
-        targets = {j: carry @ m for j, m in targets.items()}
-
     # (joint, control) pairs, outer controls first; a control's turn carries the controls hanging below it.
     pairs = sorted(((j, c) for j, cs in controls.controls.items() for c in cs),
                    key=lambda pair: len(data[pair[1]].parent_recursive))
     keyed = {c for _, c in pairs}
     above = {c: next((p.name for p in data[c].parent_recursive if p.name in keyed), None) for _, c in pairs}
-    mover = controls.controls["pelvis"][0]
 
     n = dance.num_frames
     frames = frame_start + np.arange(n)
@@ -480,33 +485,71 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
         error = max(_miss(at[measured[j]], targets[j], j in controls.aimed).max() for j in controls.controls)
         if error < np.radians(_SOLVE_TOLERANCE_DEG):
             break
-        turns: dict[str, np.ndarray] = {}  # control -> what this pass does to it, a rigid motion [T, 4, 4]
-        for j, c in pairs:
-            carried = turns[above[c]] if above[c] is not None else np.eye(4)
-            a_control, a_driven = carried @ at[c], carried @ at[measured[j]]  # after the controls above it turn
-            if j in controls.aimed:
-                turn = min_rotation(a_driven[:, :3, 1], targets[j][:, :3, 1])
-            else:
-                turn = rotation_part(targets[j]) @ np.swapaxes(rotation_part(a_driven), 1, 2)
-            head = a_control[:, :3, 3]
-            move = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-            move[:, :3, :3] = turn
-            move[:, :3, 3] = head - np.einsum("tij,tj->ti", turn, head)
-            if c == mover:
-                shift = targets[j][:, :3, 3] - (move @ a_driven)[:, :3, 3]
-                move[:, :3, 3] += shift
-                # The head moves by `shift` in armature space; the location is in the frame the bone has with no
-                # pose, which is its current frame turned back by its basis.
-                location += np.einsum("tij,tj->ti", bases[c] @ np.linalg.inv(a_control[:, :3, :3]), shift)
-            u = rotation_part(a_control)
-            bases[c] = bases[c] @ np.swapaxes(u, 1, 2) @ turn @ u
-            turns[c] = move @ carried
+        _turn_controls(controls, pairs, above, at, measured, targets, bases, location)
     else:
         bpy.data.actions.remove(action)
         action = write_action(rig, _control_tracks(rig, controls, bases, location, dance.floor_bone), name,
                               frame_start)
     scene.frame_set(frame_before)
     return action
+
+
+def _control_targets(rig: bpy.types.Object, dance: PoseTracks, bone_map: dict[str, str],
+                     controls: rigcontrols.ControlRig) -> tuple[dict[str, str], dict[str, np.ndarray]]:
+    """Per joint of the controls: the bone measured (the deform bone, or its exact twin where the rig has one)
+    and where the dance wants it, armature-space matrices [T, 4, 4] (its rest offset from the mapped bone kept;
+    carried by the floor control when the dance was retargeted as seen from that control at rest)."""
+    data = rig.data.bones
+    measured = {j: bone_map[j] for j in controls.controls}
+    if controls.exact is not None:
+        deform, exact = controls.exact
+        for j, bone in measured.items():
+            twin = exact + bone.removeprefix(deform)
+            if j not in controls.aimed and bone.startswith(deform) and twin in data:
+                measured[j] = twin
+    to_armature = np.linalg.inv(np.array(rig.matrix_world))
+    targets = {j: to_armature @ dance.world[bone_map[j]] @ np.linalg.inv(np.array(data[bone_map[j]].matrix_local))
+               @ np.array(data[measured[j]].matrix_local) for j in controls.controls}
+    if dance.floor_bone is not None:
+        _, quats, locations = dance.floor_bone
+        rest = np.array(rig.data.bones[controls.floor].matrix_local)
+        carry = np.broadcast_to(np.eye(4), (dance.num_frames, 4, 4)).copy()
+        carry[:, :3, :3] = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()
+        carry[:, :3, 3] = locations
+        carry = rest @ carry @ np.linalg.inv(rest)
+        targets = {j: carry @ m for j, m in targets.items()}
+    return measured, targets
+
+
+def _turn_controls(controls: rigcontrols.ControlRig, pairs: list[tuple[str, str]], above: dict[str, str | None],
+                   at: dict[str, np.ndarray], measured: dict[str, str], targets: dict[str, np.ndarray],
+                   bases: dict[str, np.ndarray], location: np.ndarray) -> None:
+    """One pass of the solve: turn each control (its `bases`, and the pelvis' control's `location`, changed in
+    place) by what its measured bone as Blender evaluated it (`at`) still lacks, outer controls first, a control
+    counting on the turn of the control above it."""
+    mover = controls.controls["pelvis"][0]
+    n = len(location)
+    turns: dict[str, np.ndarray] = {}  # control -> what this pass does to it, a rigid motion [T, 4, 4]
+    for j, c in pairs:
+        carried = turns[above[c]] if above[c] is not None else np.eye(4)
+        a_control, a_driven = carried @ at[c], carried @ at[measured[j]]  # after the controls above it turn
+        if j in controls.aimed:
+            turn = min_rotation(a_driven[:, :3, 1], targets[j][:, :3, 1])
+        else:
+            turn = rotation_part(targets[j]) @ np.swapaxes(rotation_part(a_driven), 1, 2)
+        head = a_control[:, :3, 3]
+        move = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+        move[:, :3, :3] = turn
+        move[:, :3, 3] = head - np.einsum("tij,tj->ti", turn, head)
+        if c == mover:
+            shift = targets[j][:, :3, 3] - (move @ a_driven)[:, :3, 3]
+            move[:, :3, 3] += shift
+            # The head moves by `shift` in armature space; the location is in the frame the bone has with no
+            # pose, which is its current frame turned back by its basis.
+            location += np.einsum("tij,tj->ti", bases[c] @ np.linalg.inv(a_control[:, :3, :3]), shift)
+        u = rotation_part(a_control)
+        bases[c] = bases[c] @ np.swapaxes(u, 1, 2) @ turn @ u
+        turns[c] = move @ carried
 
 
 def mute_overriding_constraints(rig: bpy.types.Object, bones: list[str]) -> list[str]:
