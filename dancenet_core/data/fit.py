@@ -115,9 +115,12 @@ def performer_skeleton(pos: np.ndarray) -> tuple[Skeleton, list[Target]]:
     ends[0] = replace(ends[0], offset=tuple(np.array(ends[0].offset) * kf))
     ends[1] = replace(ends[1], offset=tuple(np.array(ends[1].offset) * kf))
     ends[2] = EndSite("head_end", J["head"], (0.0, float(0.16 * kh), 0.0))
-    skeleton = Skeleton(off, end_sites=tuple(ends))
+    return Skeleton(off, end_sites=tuple(ends)), _marker_targets(head_site, half_head, ends[0].offset)
 
-    t = ends[0].offset
+
+def _marker_targets(head_site: np.ndarray, half_head: float, toe: tuple[float, float, float]) -> list[Target]:
+    """The markers the fit matches: each joint's own, the head's two (its centre, and each side half a head
+    width out, weighted less) and the toes' (at the toe end `toe` from the foot joint)."""
     targets = [
         Target("pelvis", J["pelvis"], (0, 0, 0), (P["pelvis"],)),
         Target("head", J["head"], tuple(head_site), (P["head_l"], P["head_r"])),
@@ -129,12 +132,12 @@ def performer_skeleton(pos: np.ndarray) -> tuple[Skeleton, list[Target]]:
             Target(f"{side}_hip", J[f"{side}_hip"], (0, 0, 0), (P[f"{s}_hip"],)),
             Target(f"{side}_knee", J[f"{side}_knee"], (0, 0, 0), (P[f"{s}_knee"],)),
             Target(f"{side}_ankle", J[f"{side}_ankle"], (0, 0, 0), (P[f"{s}_ankle"],)),
-            Target(f"{side}_toe", J[f"{side}_foot"], t, (P[f"{s}_toe"],)),
+            Target(f"{side}_toe", J[f"{side}_foot"], toe, (P[f"{s}_toe"],)),
             Target(f"{side}_shoulder", J[f"{side}_shoulder"], (0, 0, 0), (P[f"{s}_shoulder"],)),
             Target(f"{side}_elbow", J[f"{side}_elbow"], (0, 0, 0), (P[f"{s}_elbow"],)),
             Target(f"{side}_wrist", J[f"{side}_wrist"], (0, 0, 0), (P[f"{s}_wrist"],)),
         ]
-    return skeleton, targets
+    return targets
 
 
 def target_positions(pos: np.ndarray, targets: list[Target]) -> np.ndarray:
