@@ -109,15 +109,16 @@ def _stats(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x.mean(0).astype(np.float32), (x.std(0) + 1e-3).astype(np.float32)
 
 
-def train_match(songs: Sequence[SongBars], *, context: int, steps: int, batch: int = 256, hidden: int = 256,
-                dim: int = 64, dropout: float = 0.2, noise: float = 0.0, temperature: float = 0.1, lr: float = 1e-3,
-                weight_decay: float = 1e-4, style_weight: float = 0.0, balanced: bool = False, seed: int = 0,
-                log: Callable[[str], None] = print) -> tuple[MatchModel, list[float]]:
-    """InfoNCE both ways on random batches of bars (a dance or its mirror image), with `style_weight` times a
-    style classifier's loss on both embeddings (one linear head, kept with the model: `MatchModel.style_probs`);
-    `balanced`: bars drawn with
-    each style equally likely. Adam, lr / 10 for the last quarter. Returns the model and the loss per tenth of the
-    steps."""
+def train_match(songs: Sequence[SongBars], settings: MatchSettings, *, batch: int = 256, hidden: int = 256,
+                dim: int = 64, lr: float = 1e-3, weight_decay: float = 1e-4, log: Callable[[str], None] = print
+                ) -> tuple[MatchModel, list[float]]:
+    """InfoNCE both ways on random batches of bars (a dance or its mirror image), with `settings.style_weight` times
+    a style classifier's loss on both embeddings (one linear head, kept with the model: `MatchModel.style_probs`);
+    `settings.balanced`: bars drawn with each style equally likely. Adam, lr / 10 for the last quarter. Returns the
+    model and the loss per tenth of the steps."""
+    s = settings
+    seed, steps, context, temperature = s.seed, s.steps, s.context, s.temperature
+    style_weight, balanced, dropout, noise = s.style_weight, s.balanced, s.dropout, s.noise
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     music = np.concatenate([s.music for s in songs for _ in (0, 1)])
@@ -229,10 +230,7 @@ def train_and_ship(settings: MatchSettings, log: Callable[[str], None] = print) 
     bars = load_bars(settings.context)
     train, val, test = split_songs(bars)
     fit_on = train
-    model, curve = train_match(fit_on, context=settings.context, steps=settings.steps,
-                               style_weight=settings.style_weight, balanced=settings.balanced,
-                               dropout=settings.dropout, noise=settings.noise, temperature=settings.temperature,
-                               seed=settings.seed, log=log)
+    model, curve = train_match(fit_on, settings, log=log)
     held = val if settings.validate else test
     figures = {"held_out": "validation" if settings.validate else "test",
                "train_songs": [s.seq for s in fit_on], "held_out_songs": [s.seq for s in held],

@@ -11,6 +11,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from dancenet_core.library.match import MatchModel  # noqa: E402
+from dancenet_core.training.configs import MatchSettings  # noqa: E402
 from dancenet_core.training.match import SongBars, retrieval, style_transfer, train_match  # noqa: E402
 
 
@@ -31,8 +32,8 @@ def made_up_songs(n_songs: int = 8, bars: int = 40, seed: int = 0) -> list[SongB
 
 def test_training_learns_the_pairing_and_the_scorer_agrees(tmp_path: Path) -> None:
     train = made_up_songs(seed=0)
-    model, curve = train_match(train, context=0, steps=300, dropout=0.0, noise=0.0, style_weight=1.0,
-                               balanced=True, log=lambda _m: None)
+    settings = MatchSettings(steps=300, context=0, dropout=0.0, noise=0.0)
+    model, curve = train_match(train, settings, log=lambda _m: None)
     assert curve[-1] < 0.6 * curve[0]
     model.save(tmp_path / "m.npz")
     back = MatchModel.load(tmp_path / "m.npz")
