@@ -422,8 +422,9 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         "",
         "## Foot clean-up",
         "Every dance is stood on the floor from its predicted contacts (the root's height only, frame by frame). "
-        + ("The clean-up holds each foot where it stands through each contact the model predicts, the legs reaching "
-           "it by two-bone IK (hip and knee; the foot's own turn, the path and the upper body kept); no training."
+        + ("The clean-up holds each foot where it stands through each contact the model predicts, and wherever it "
+           "leaves a foot still on the floor, the legs reaching it by two-bone IK (hip and knee; the foot's own turn, "
+           "the path and the upper body kept); no training."
            if FOOT_CLEANUP == "lock" else f"The clean-up is `{FOOT_CLEANUP}` (`engines/dancenet.py`).")
         + " Chosen on the validation songs among the contact lock, the Foot Constraint Model and both "
           "(`dancenet validate --cleanup`; docs/experiments.md).",
