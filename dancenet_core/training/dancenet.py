@@ -14,7 +14,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -229,16 +229,21 @@ def _ddp() -> tuple[int, int]:
     return rank, world
 
 
-def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split: dict | None = None) -> Path:
-    """Train; `pairs` and `split` default to the built dataset and the shipped song split."""
-    rank, world = _ddp()
-    local = int(os.environ.get("LOCAL_RANK", 0))
-    device = torch.device(f"cuda:{local}" if torch.cuda.is_available() else "cpu")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    torch.manual_seed(args.seed + rank)
-    rng = np.random.default_rng(args.seed + rank)
+@dataclass
+class _Songs:
+    """What a run trains on and is measured on: the training sequences, the held-out ones (the validation songs
+    when held out, else the test songs), the styles learnt and why others are left out."""
 
+    train: list[PairedSequence]
+    held_out: list[PairedSequence]
+    styles: list[str]
+    left_out: dict[str, str]
+    validation: set[str]  # the validation songs held out of training (none unless --validation)
+    test: set[str]
+
+
+def _songs(args: TrainSettings, pairs: list[PairedSequence] | None, split: dict | None, rank: int) -> _Songs:
+    """The sequences (the built dataset, a pack, or `pairs`) split by `split` (default: the shipped one)."""
     if pairs is None and args.pack:
         pairs = load_pack(args.pack)
     elif pairs is None:
@@ -256,86 +261,105 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
     if args.motion_prior:  # motion without music, in one style; held-out windows silent too
         train_pairs, eval_pairs, styles = prior_sequences(train_pairs, args.data or default_data_dir()), \
             silent(eval_pairs), [PRIOR_STYLE]
-    layout = FeatureLayout(55, 5)
-    init = DanceNetBundle.load(args.init) if args.init else None
-    # A warm start keeps its normaliser: its weights were learnt on that scale.
-    norm = init.normalizer if init else Normalizer.fit(
-        [p.motion for p in train_pairs] + [p.mirrored for p in train_pairs], binary=layout.contacts)
-    model = build_model(args.variant, layout.size, layout.continuous.stop, styles, args.window,
-                        mixtures=args.mixtures, residual_output=args.residual_output,
-                        input_skip=args.input_skip, widths=tuple(args.widths) or None)
-    cfg = model.cfg
-    if args.input_dropout is not None:
-        cfg.input_dropout = args.input_dropout
-    model.modelled.copy_(torch.tensor(~norm.constant[layout.continuous]))
-    if init:
-        warm_start(model, init.model)
-    model.to(device)
-    net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 else model
-    opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
+    return _Songs(train_pairs, eval_pairs, styles, left_out, held_out, test_ids)
 
-    train_windows = WindowSampler(train_pairs, norm, styles, layout, window=args.window, seed=args.seed)
-    # On a GPU the numpy batch is the bottleneck: draw the same windows from tensors on the device instead.
-    device_windows = TensorWindows(train_windows, device) if device.type == "cuda" else None
-    root_mean, root_std = (torch.tensor(a[ROOT_STEP], dtype=torch.float32, device=device)
-                           for a in (norm.mean, norm.std))
-    # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
-    # test songs (a figure for the card only).
-    eval_name = "val" if held_out else "test"
-    test_windows = held_out_windows(eval_pairs, norm, styles, layout, args.window, args.seed)
-    start_frames = {s: np.stack([p.motion[0] for p in train_pairs if p.style == s]) for s in styles}
-    info = {
+
+def _run_info(args: TrainSettings, songs: _Songs, windows: WindowSampler, device: torch.device) -> dict:
+    """What the weights file tells about its run (the model card's facts)."""
+    return {
         "variant": args.variant,
         "data": "Dance with Melody (Tang et al. 2018, both folders), training split of weights/song_split.json"
-                + (" less its validation songs" if held_out else "")
+                + (" less its validation songs" if songs.validation else "")
                 + (", and the CMU dance clips; all without music (a motion prior)" if args.motion_prior else ""),
-        "validation_sequences": sorted(held_out),
+        "validation_sequences": sorted(songs.validation),
         "init": str(args.init) if args.init else None,
-        "minutes_per_style": {s: round(sum(len(p.motion) for p in train_pairs if p.style == s) / 1500, 2)
-                              for s in styles},
-        "train_sequences": sorted(p.seq for p in train_pairs),
-        "test_sequences": sorted(test_ids),  # the split's, also when a pack (which holds none of them) trains
-        "styles_left_out": left_out,
-        "train_minutes": sum(len(p.motion) for p in train_pairs) / 25 / 60,
-        "windows": len(train_windows.index),
-        "cluster_sizes": train_windows.cluster_sizes.tolist(),
+        "minutes_per_style": {s: round(sum(len(p.motion) for p in songs.train if p.style == s) / 1500, 2)
+                              for s in songs.styles},
+        "train_sequences": sorted(p.seq for p in songs.train),
+        "test_sequences": sorted(songs.test),  # the split's, also when a pack (which holds none of them) trains
+        "styles_left_out": songs.left_out,
+        "train_minutes": sum(len(p.motion) for p in songs.train) / 25 / 60,
+        "windows": len(windows.index),
+        "cluster_sizes": windows.cluster_sizes.tolist(),
         "settings": asdict(args) | {"data": str(args.data)},
         "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "CPU",
     }
 
-    step, elapsed = 0, 0.0
-    ckpt = out / "checkpoint.pt"
-    if args.resume and ckpt.is_file():
-        state = load_weights(ckpt, "training checkpoint", "delete it to start the run afresh")
-        model.load_state_dict(state["bundle"]["state_dict"])
-        opt.load_state_dict(state["optimizer"])
-        step, elapsed = state["step"], state["elapsed"]
-        rng.bit_generator.state = state["rng"]
+
+class _Run:
+    """One training run: the model, its optimiser and windows, and where it stands (step, elapsed seconds)."""
+
+    def __init__(self, args: TrainSettings, songs: _Songs, rank: int, world: int, device: torch.device) -> None:
+        self.args, self.songs, self.rank, self.device = args, songs, rank, device
+        self.out = Path(args.out)
+        self.rng = np.random.default_rng(args.seed + rank)
+        layout = FeatureLayout(55, 5)
+        self.init = DanceNetBundle.load(args.init) if args.init else None
+        # A warm start keeps its normaliser: its weights were learnt on that scale.
+        self.norm = self.init.normalizer if self.init else Normalizer.fit(
+            [p.motion for p in songs.train] + [p.mirrored for p in songs.train], binary=layout.contacts)
+        model = self.model = build_model(args.variant, layout.size, layout.continuous.stop, songs.styles, args.window,
+                                         mixtures=args.mixtures, residual_output=args.residual_output,
+                                         input_skip=args.input_skip, widths=tuple(args.widths) or None)
+        if args.input_dropout is not None:
+            model.cfg.input_dropout = args.input_dropout
+        model.modelled.copy_(torch.tensor(~self.norm.constant[layout.continuous]))
+        if self.init:
+            warm_start(model, self.init.model)
+        model.to(device)
+        self.net = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True) if world > 1 \
+            else model
+        self.opt = torch.optim.RMSprop(model.parameters(), lr=args.lr)
+        self.windows = WindowSampler(songs.train, self.norm, songs.styles, layout, window=args.window, seed=args.seed)
+        # On a GPU the numpy batch is the bottleneck: draw the same windows from tensors on the device instead.
+        self.device_windows = TensorWindows(self.windows, device) if device.type == "cuda" else None
+        self.root_mean, self.root_std = (torch.tensor(a[ROOT_STEP], dtype=torch.float32, device=device)
+                                         for a in (self.norm.mean, self.norm.std))
+        # Held-out loss on the validation songs when they are held out (settings are chosen there), else on the
+        # test songs (a figure for the card only).
+        self.eval_name = "val" if songs.validation else "test"
+        self.test_windows = held_out_windows(songs.held_out, self.norm, songs.styles, layout, args.window, args.seed)
+        self.start_frames = {s: np.stack([p.motion[0] for p in songs.train if p.style == s]) for s in songs.styles}
+        self.info = _run_info(args, songs, self.windows, device)
+        self.step, self.elapsed, self.budget = 0, 0.0, args.minutes * 60
+
+    def resume(self) -> None:
+        """Carry on from the run's checkpoint: weights, optimiser, position and every generator's state."""
+        state = load_weights(self.out / "checkpoint.pt", "training checkpoint", "delete it to start the run afresh")
+        self.model.load_state_dict(state["bundle"]["state_dict"])
+        self.opt.load_state_dict(state["optimizer"])
+        self.step, self.elapsed = state["step"], state["elapsed"]
+        self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
-        if device.type == "cuda" and state.get("cuda_rng") is not None:  # the device's windows and draws
-            torch.cuda.set_rng_state(state["cuda_rng"], device)
-        if rank == 0:
-            print(f"resumed at step {step} ({elapsed / 60:.1f} min)")
+        if self.device.type == "cuda" and state.get("cuda_rng") is not None:  # the device's windows and draws
+            torch.cuda.set_rng_state(state["cuda_rng"], self.device)
+        if self.rank == 0:
+            print(f"resumed at step {self.step} ({self.elapsed / 60:.1f} min)")
 
-    def bundle() -> DanceNetBundle:
-        return DanceNetBundle(model, norm, mean_skeleton(train_pairs), start_frames,
-                              info | {"steps": step, "train_seconds": elapsed})
+    def checkpoint(self) -> None:
+        save_weights({"bundle": self.bundle().to_dict(), "optimizer": self.opt.state_dict(), "step": self.step,
+                      "elapsed": self.elapsed, "rng": self.rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+                      "cuda_rng": torch.cuda.get_rng_state(self.device) if self.device.type == "cuda" else None},
+                     self.out / "checkpoint.pt")
 
-    def held_out_loss() -> dict[str, float]:
-        return windows_loss(model, test_windows, eval_name, device)
+    def bundle(self) -> DanceNetBundle:
+        return DanceNetBundle(self.model, self.norm, mean_skeleton(self.songs.train), self.start_frames,
+                              self.info | {"steps": self.step, "train_seconds": self.elapsed})
 
-    budget = args.minutes * 60
+    def held_out_loss(self) -> dict[str, float]:
+        return windows_loss(self.model, self.test_windows, self.eval_name, self.device)
 
-    def batch_loss() -> tuple[torch.Tensor, dict[str, float]]:
+    def batch_loss(self) -> tuple[torch.Tensor, dict[str, float]]:
         """The training loss of one fresh batch (own draws and travel loss as the settings ask)."""
-        if device_windows:
-            b = device_windows.batch(args.batch, input_noise=args.input_noise)
+        args, model, cfg = self.args, self.model, self.model.cfg
+        if self.device_windows:
+            b = self.device_windows.batch(args.batch, input_noise=args.input_noise)
             noisy, music, style, target = b.motion, b.music, b.style, b.target
         else:
-            b = train_windows.batch(rng, args.batch, input_noise=args.input_noise)
-            noisy, music, style, target = (torch.tensor(a, device=device)
+            b = self.windows.batch(self.rng, args.batch, input_noise=args.input_noise)
+            noisy, music, style, target = (torch.tensor(a, device=self.device)
                                            for a in (b.motion, b.music, b.style, b.target))
-        progress = max(step / args.steps, elapsed / budget)
+        progress = max(self.step / args.steps, self.elapsed / self.budget)
         share = args.own_inputs * (min(1.0, progress / args.own_ramp) if args.own_ramp > 0 else 1.0)
         if share > 0:
             noisy = with_own_predictions(model, noisy, music, style, share, args.own_passes, args.own_stretch,
@@ -345,56 +369,85 @@ def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split:
             x = hide_history(x, args.history_dropout, args.history_stretch)
         # A residual output starts from the frame before dropout: dropout hides channels from the network,
         # not from the frame the change is added to (at generation that frame is whole).
+        net = self.net
         o = net(x, music, style, base=noisy) if getattr(cfg, "residual_output", False) else net(x, music, style)
         loss, parts = model.loss(o, target[:, 1:], music[:, 1:])
         if args.travel_weight > 0:
-            travel = travel_loss(model, o, target[:, 1:], root_mean, root_std, args.travel_windows)
+            travel = travel_loss(model, o, target[:, 1:], self.root_mean, self.root_std, args.travel_windows)
             loss = loss + args.travel_weight * travel
             parts["travel"] = float(travel.detach())
         return loss, parts
 
-    model.train()
-    if init and step == 0:
-        prime_rmsprop(opt, model, batch_loss)
-    t_last = time.time()
-    while step < args.steps and elapsed < budget:
-        loss, parts = batch_loss()
+    def optimise(self) -> tuple[torch.Tensor, dict[str, float]]:
+        """One step of the optimiser on a fresh batch; its loss and the loss's parts."""
+        args, opt = self.args, self.opt
+        loss, parts = self.batch_loss()
         opt.zero_grad()
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        torch.nn.utils.clip_grad_norm_(self.model.parameters(), 10.0)
         opt.step()
-        step += 1
+        self.step += 1
         # The supplement drops the rate by 10 at 77% of training (epoch 1000 of 1300); here 77% of the
         # planned steps or of the time budget, whichever comes first.
-        if max(step / args.steps, elapsed / budget) >= 0.77 and opt.param_groups[0]["lr"] > args.lr * 0.5:
+        progress = max(self.step / args.steps, self.elapsed / self.budget)
+        if progress >= 0.77 and opt.param_groups[0]["lr"] > args.lr * 0.5:
             for g in opt.param_groups:
                 g["lr"] = args.lr * 0.1
-        now = time.time()
-        elapsed += now - t_last
-        t_last = now
-        if rank == 0 and (step % args.log_every == 0 or step == 1):
-            rec = {"step": step, "minutes": round(elapsed / 60, 2), "lr": opt.param_groups[0]["lr"],
+        return loss, parts
+
+    def record(self, loss: torch.Tensor, parts: dict[str, float]) -> None:
+        """What rank 0 writes after a step: the log line, a snapshot, the checkpoint, as often as asked."""
+        args, step, out = self.args, self.step, self.out
+        if step % args.log_every == 0 or step == 1:
+            rec = {"step": step, "minutes": round(self.elapsed / 60, 2), "lr": self.opt.param_groups[0]["lr"],
                    "loss": loss.item(), **parts}
             if step % (args.log_every * 5) == 0 or step == 1:
-                rec |= held_out_loss()
+                rec |= self.held_out_loss()
             _log(out, rec)
-        if rank == 0 and args.snapshot_every and step % args.snapshot_every == 0:
+        if args.snapshot_every and step % args.snapshot_every == 0:
             # Kept weights along the way: the learning curve (held-out FID_k against time) is measured on them.
             # Each carries its held-out loss, so a snapshot chosen for shipping has its card's figures.
             (out / "snapshots").mkdir(exist_ok=True)
-            snapshot = bundle()
-            snapshot.info |= held_out_loss()
+            snapshot = self.bundle()
+            snapshot.info |= self.held_out_loss()
             snapshot.save(out / "snapshots" / f"step{step:06d}.pt")
-        if rank == 0 and step % args.checkpoint_every == 0:
-            save_weights({"bundle": bundle().to_dict(), "optimizer": opt.state_dict(), "step": step,
-                          "elapsed": elapsed, "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
-                          "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None}, ckpt)
+
+    def finish(self) -> None:
+        """The run's weights (with their held-out loss), the runtime's arrays, the log's last line."""
+        final = self.bundle()
+        final.info |= self.held_out_loss()
+        final.save(self.out / "dancenet.pt")
+        if isinstance(final.model, DanceNet):  # what generation runs, without torch
+            bundle_to_runtime(final).save(self.out / "dancenet.npz")
+        _log(self.out, {"step": self.step, "minutes": round(self.elapsed / 60, 2), "done": True,
+                        **self.held_out_loss()})
+
+
+def train(args: TrainSettings, pairs: list[PairedSequence] | None = None, split: dict | None = None) -> Path:
+    """Train; `pairs` and `split` default to the built dataset and the shipped song split."""
+    rank, world = _ddp()
+    local = int(os.environ.get("LOCAL_RANK", 0))
+    device = torch.device(f"cuda:{local}" if torch.cuda.is_available() else "cpu")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(args.seed + rank)
+    run = _Run(args, _songs(args, pairs, split, rank), rank, world, device)
+    if args.resume and (out / "checkpoint.pt").is_file():
+        run.resume()
+    run.model.train()
+    if run.init and run.step == 0:
+        prime_rmsprop(run.opt, run.model, run.batch_loss)
+    t_last = time.time()
+    while run.step < args.steps and run.elapsed < run.budget:
+        loss, parts = run.optimise()
+        now = time.time()
+        run.elapsed += now - t_last
+        t_last = now
+        if rank == 0:
+            run.record(loss, parts)
+        if rank == 0 and run.step % args.checkpoint_every == 0:
+            run.checkpoint()
             t_last = time.time()
     if rank == 0:
-        final = bundle()
-        final.info |= held_out_loss()
-        final.save(out / "dancenet.pt")
-        if isinstance(final.model, DanceNet):  # what generation runs, without torch
-            bundle_to_runtime(final).save(out / "dancenet.npz")
-        _log(out, {"step": step, "minutes": round(elapsed / 60, 2), "done": True, **held_out_loss()})
+        run.finish()
     return out / "dancenet.pt"
