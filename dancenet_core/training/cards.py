@@ -52,6 +52,12 @@ def write_style_card(data_dir: str | Path, out_dir: str | Path, split_path: str 
     return card
 
 
+def _confusion(styles: Sequence[str], m: list[list[int]]) -> list[str]:
+    """A confusion matrix (rows: the truth) as a markdown table."""
+    lines = ["| truth \\ predicted | " + " | ".join(styles) + " |", "|---" * (len(styles) + 1) + "|"]
+    return lines + [f"| {st} | " + " | ".join(str(v) for v in row) + " |" for st, row in zip(styles, m, strict=True)]
+
+
 def _majority(m: list[list[int]]) -> float:
     """Accuracy of always answering the style with most test items (rows of confusion matrix m)."""
     return max(sum(r) for r in m) / max(1, sum(sum(r) for r in m))
@@ -59,170 +65,209 @@ def _majority(m: list[list[int]]) -> float:
 
 def style_card(conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequence[Recording]) -> str:
     """Markdown summary of data, split, settings and held-out results of both models, like Table 2."""
-    styles = conv.styles
-    settings = conv.meta["training"]
-    c, b = conv.meta["training"]["metrics"], baseline.meta["training"]["metrics"]
-    style_of = {r.seq: r.style for r in rows}
-    seconds = {r.seq: r.song_s for r in rows}
+    card = _StyleCard(conv, baseline, split, rows)
+    return "\n".join(card._title() + card._data() + card._training() + card._differences() + card._results()
+                     + card._limits())
 
-    def count(seqs: Sequence[str], st: str) -> str:
-        chosen = [s for s in seqs if style_of[s] == st]
-        return f"{len(chosen)} ({sum(seconds[s] for s in chosen) / 60:.1f} min)"
 
-    def confusion(m: list[list[int]]) -> list[str]:
-        lines = ["| truth \\ predicted | " + " | ".join(styles) + " |", "|---" * (len(styles) + 1) + "|"]
-        lines += [f"| {st} | " + " | ".join(str(v) for v in row) + " |" for st, row in zip(styles, m, strict=True)]
-        return lines
+class _StyleCard:
+    """The style classifiers' card, section by section, from the two models' training metadata, the split and
+    the manifest."""
 
-    per_style = {st: [s for s in split["train"] if style_of[s] == st] for st in styles}
-    common = max(styles, key=lambda st: len(per_style[st]))
-    counts = sorted(len(v) for st, v in per_style.items() if st != common) or [0]
-    few = str(counts[0]) if counts[0] == counts[-1] else f"{counts[0]}-{counts[-1]}"
+    def __init__(self, conv: StyleModel, baseline: StyleModel, split: dict, rows: Sequence[Recording]) -> None:
+        self.conv, self.split, self.rows = conv, split, rows
+        self.styles = styles = conv.styles
+        self.settings = conv.meta["training"]
+        self.c, self.b = conv.meta["training"]["metrics"], baseline.meta["training"]["metrics"]
+        self.style_of = {r.seq: r.style for r in rows}
+        self.seconds = {r.seq: r.song_s for r in rows}
+        per_style = {st: [s for s in split["train"] if self.style_of[s] == st] for st in styles}
+        self.common = max(styles, key=lambda st: len(per_style[st]))
+        counts = sorted(len(v) for st, v in per_style.items() if st != self.common) or [0]
+        self.few = str(counts[0]) if counts[0] == counts[-1] else f"{counts[0]}-{counts[-1]}"
 
-    def minority(m: dict) -> str:
-        rest = {s: p for s, p in m["predictions"].items() if p["truth"] != common}
+    def count(self, seqs: Sequence[str], st: str) -> str:
+        chosen = [s for s in seqs if self.style_of[s] == st]
+        return f"{len(chosen)} ({sum(self.seconds[s] for s in chosen) / 60:.1f} min)"
+
+    def confusion(self, m: list[list[int]]) -> list[str]:
+        return _confusion(self.styles, m)
+
+    def minority(self, m: dict) -> str:
+        rest = {s: p for s, p in m["predictions"].items() if p["truth"] != self.common}
         return f"{sum(p['predicted'] == p['truth'] for p in rest.values())} of {len(rest)} right"
 
-    out = [
-        "# Style classifier model card",
-        "",
-        "Musical style classifier of DanceNet (Zhuang et al. 2020, section 4.2), trained by "
-        "`dancenet train style`. Files: `style_classifier.pt` (temporal conv + Bi-LSTM + FC), "
-        "`style_baseline.pt` (FC + Bi-LSTM + FC, the paper's baseline), `song_split.json`.",
-        "",
-        "## Data",
-        "",
-        "Dance with Melody (Tang et al. 2018) songs, the whole audio of each (not only the danced span); "
-        f"research use only, no licence. Input: {STYLE_INPUTS} channels at 10 fps in "
-        f"{WINDOW_S:g}-second windows: the music features' deep chroma (12) and onset (1) (feature version "
-        f"`{FEATURE_VERSION}`), in place of their beat and downbeat activations a bump of height 1 (Gaussian, "
-        f"sigma {BUMP_SIGMA_FRAMES:g} frame) at each beat and downbeat tracked by madmom's DBN (3 or 4 beats a "
-        "bar), and the metre and tempo spelt out from the same tracked beats: the number of beats in the bar "
-        "that each frame lies in, minus 3, and the local tempo as log2(bpm / "
-        f"{TEMPO_REF_BPM:g}), the median of {TEMPO_MEDIAN_BEATS} beat intervals; see below for why. No two "
-        "sequences share a recording (checked by waveform cross-correlation).",
-        "",
-        "| style | train songs | test songs |",
-        "|---|---|---|",
-        *[f"| {st} | {count(split['train'], st)} | {count(split['test'], st)} |" for st in styles],
-        "",
-        f"Split by song, stratified by style, seed {split['seed']}: "
-        f"round({split['test_fraction']} x n) songs of each style held out (at least one). Excluded:",
-        "",
-        *[f"- {s} ({style_of[s]}): {why}" for s, why in split["excluded"].items()],
-        "",
-        "## Training",
-        "",
-        f"Adam, learning rate {settings['lr']:g} divided by 10 at 60% and 83% of {settings['steps']} steps "
-        f"(the supplement's schedule shape), batch {settings['batch']} windows, seed {settings['seed']}, "
-        "cross-entropy; the last step is shipped. Each window: style drawn uniformly (waltz has most songs), "
-        "then a song and a random offset; "
-        + (f"played up to {100 * STYLE_AUG_TEMPO:g}% faster or slower (chroma and onset resampled in time, the "
-           "bumps, beats per bar and tempo redrawn from the moved beat times: beats per second change, beats "
-           "per bar do not), " if STYLE_AUG_TEMPO else "played at its own tempo (no stretch: see below), ")
-        + "transposed by a random number of semitones (chroma rolled), the onset channel times "
-        f"a gain in [{1 - AUG_GAIN:g}, {1 + AUG_GAIN:g}], plus Gaussian noise (sigma {AUG_NOISE:g})"
-        + (f"; chroma blanked in {100 * AUG_CHROMA_DROP:g}% of windows. " if AUG_CHROMA_DROP else ". ")
-        + f"Both models: Bi-LSTM of {conv.config['hidden']} units each way, dropout {conv.config['dropout']:g}, "
-        "mean over time, then FC; trained by the same code with the same settings.",
-        "",
-        "These settings were chosen with `train --validate`, which holds out training songs by song ("
-        + ", ".join(validation_songs(split, rows))
-        + ") and never loads the test songs; the shipped models were then trained on all training songs.",
-        "",
-        "## What differs from the paper, and why",
-        "",
-        "- Architecture as in section 4.2 (three temporal conv layers, kernel 2, channels 1-16-24-32, then a "
-        "Bi-LSTM and a fully connected layer; the baseline puts a per-frame fully connected layer in place of "
-        "the convolutions), 30-second windows, cross-entropy.",
-        "- Input: the paper feeds its music features as they are. Here the beat and downbeat activation "
-        "channels are replaced by bumps at the DBN-tracked beats and downbeats. Sampled at 10 fps, madmom's "
-        "100-fps activations miss many of their peaks (a training song's highest sampled beat value ranges "
-        "0.24-0.93), so the metre and tempo that tell these ballroom styles apart (waltz 3 beats a bar at "
-        "83-88 bpm; cha-cha 115-125 bpm; rumba mostly 88-95 bpm) came through blurred; the tracked beats "
-        "carry them intact. On the validation songs, with the same settings, the balanced accuracy of ours by "
-        f"window (by song) rose from {VALIDATION['activations']} to {VALIDATION['bumps']}; the baseline's with "
-        f"bumps is {VALIDATION['baseline']}. DanceNet's own music input is unchanged.",
-        f"- Tango (added with the extra data folder): with the same settings the balanced accuracy on the "
-        f"validation songs is {VALIDATION_WITH_TANGO['200']} by window (by song) at 200 steps and "
-        f"{VALIDATION_WITH_TANGO['400']} at 400: tango's songs (about 120-130 bpm, four beats a bar) are learnt, "
-        "and cha-cha's, in the same tempo range, are taken for tango (see the confusion below). The style can "
-        "always be chosen by hand (`--style`, the panel).",
-        "- Metre and tempo as inputs: from the bumps alone the net had to count beats between "
-        "downbeats and time their spacing, and it called a held-out waltz rumba and cha-cha tango. Now beats per "
-        "bar and the local tempo are two more input columns. The tempo stretch of the augmentation then had to "
-        "go: cha-cha (115-125 bpm here) and tango (125-128 bpm) lie within any stretch tried. Balanced accuracy "
-        "by window (by song) of ours on the validation songs (one tango among them, DANCE_T_3, is taken for a "
-        "cha-cha by every setting):",
-        "",
-        "| setting | validation, balanced by window (by song) |",
-        "|---|---|",
-        *[f"| {setting} | {figures} |" for setting, figures in VALIDATION_METER_TEMPO.items()],
-        "",
-        f"- Styles: the dance styles of the training data ({len(styles)} here) instead of the paper's two music "
-        f"styles, and {sum(seconds[q] for q in split['train']) / 3600:.1f} hours of music instead of 35.7: hence "
-        "the augmentation, the small Bi-LSTM "
-        f"({conv.config['hidden']} units), dropout and the short schedule, all chosen on validation songs.",
-        "",
-        "## Held-out results",
-        "",
-        f"Windows every {STYLE_HOP_S:g} s over each test song ({c['windows']} windows, {c['songs']} songs); "
-        "a song's style is the mean of its windows' probabilities.",
-        "",
-        "Balanced accuracy is the mean of the per-style recalls: the fairer number with this many waltzes, "
-        f"since always answering the most common style scores {100 / len(styles):.1f}% on it.",
-        "",
-        "| method | window accuracy | balanced, by window | song accuracy | balanced, by song "
-        "| train window accuracy | training time |",
-        "|---|---|---|---|---|---|---|",
-        f"| Always the most common style | {100 * _majority(c['confusion_window']):.1f}% "
-        f"| {100 / len(styles):.1f}% | {100 * _majority(c['confusion_song']):.1f}% | {100 / len(styles):.1f}% "
-        "| - | - |",
-        *[
-            f"| {name} | {100 * m['window_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_window']):.1f}% "
-            f"| {100 * m['song_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_song']):.1f}% "
-            f"| {100 * m['train']['window_accuracy']:.1f}% | {m['train_seconds']} s |"
-            for name, m in (("Baseline (FC + Bi-LSTM)", b), ("Ours (Temporal Conv + Bi-LSTM)", c))
-        ],
-        "",
-        "The paper's Table 2 (its own 35.7 h of music, two styles, accuracy): baseline 88.0%, ours 92.1%. With "
-        f"{len(split['test'])} test songs here, one song is {100 / max(1, len(split['test'])):.1f} points "
-        "of song accuracy: the numbers are indicative only.",
-        "",
-        "### Confusion by window, ours",
-        "",
-        *confusion(c["confusion_window"]),
-        "",
-        "### Confusion by window, baseline",
-        "",
-        *confusion(b["confusion_window"]),
-        "",
-        "### By song",
-        "",
-        "| song | truth | ours | baseline |",
-        "|---|---|---|---|",
-        *[
-            f"| {s} | {p['truth']} | {p['predicted']} ({p['p_truth']:.2f}) "
-            f"| {b['predictions'][s]['predicted']} ({b['predictions'][s]['p_truth']:.2f}) |"
-            for s, p in c["predictions"].items()
-        ],
-        "",
-        "(In brackets: the probability given to the true style.)",
-        "",
-        "## Limits",
-        "",
-        f"Held-out songs of the styles other than {common}: ours gets {minority(c)}, the baseline "
-        f"{minority(b)}. Ballroom styles differ mostly in tempo and metre, which the input spells out, but the "
-        f"models have learnt from {few} songs per style apart from {common} and fit their training songs far "
-        "better than new ones: treat the style as a suggestion that the user can override. The models know "
-        "only the styles listed above. Beats per bar set waltz (3) apart; cha-cha, rumba and tango are all 4 "
-        "beats a bar and told apart mostly by tempo, where the tracker's tempo of a rumba is anywhere from 70 "
-        "to 190 bpm (it often counts the beat at 1.5 or 2 times its speed): a rumba tracked at tango's tempo "
-        "(as the test rumba here, 130 bpm; the tangos are at 125-128 bpm) is taken for a tango, and so are "
-        "many windows of a cha-cha at the top of its range (125 bpm).",
-        "",
-    ]
-    return "\n".join(out)
+    def _title(self) -> list[str]:
+        """What the models are and their files."""
+        return [
+            "# Style classifier model card",
+            "",
+            "Musical style classifier of DanceNet (Zhuang et al. 2020, section 4.2), trained by "
+            "`dancenet train style`. Files: `style_classifier.pt` (temporal conv + Bi-LSTM + FC), "
+            "`style_baseline.pt` (FC + Bi-LSTM + FC, the paper's baseline), `song_split.json`.",
+            "",
+        ]
+
+    def _data(self) -> list[str]:
+        """The songs, the input and the split."""
+        styles, split, count, style_of = self.styles, self.split, self.count, self.style_of
+        return [
+            "## Data",
+            "",
+            "Dance with Melody (Tang et al. 2018) songs, the whole audio of each (not only the danced span); "
+            f"research use only, no licence. Input: {STYLE_INPUTS} channels at 10 fps in "
+            f"{WINDOW_S:g}-second windows: the music features' deep chroma (12) and onset (1) (feature version "
+            f"`{FEATURE_VERSION}`), in place of their beat and downbeat activations a bump of height 1 (Gaussian, "
+            f"sigma {BUMP_SIGMA_FRAMES:g} frame) at each beat and downbeat tracked by madmom's DBN (3 or 4 beats a "
+            "bar), and the metre and tempo spelt out from the same tracked beats: the number of beats in the bar "
+            "that each frame lies in, minus 3, and the local tempo as log2(bpm / "
+            f"{TEMPO_REF_BPM:g}), the median of {TEMPO_MEDIAN_BEATS} beat intervals; see below for why. No two "
+            "sequences share a recording (checked by waveform cross-correlation).",
+            "",
+            "| style | train songs | test songs |",
+            "|---|---|---|",
+            *[f"| {st} | {count(split['train'], st)} | {count(split['test'], st)} |" for st in styles],
+            "",
+            f"Split by song, stratified by style, seed {split['seed']}: "
+            f"round({split['test_fraction']} x n) songs of each style held out (at least one). Excluded:",
+            "",
+            *[f"- {s} ({style_of[s]}): {why}" for s, why in split["excluded"].items()],
+            "",
+        ]
+
+    def _training(self) -> list[str]:
+        """The optimiser, the schedule and the augmentation."""
+        settings, split, rows, conv = self.settings, self.split, self.rows, self.conv
+        return [
+            "## Training",
+            "",
+            f"Adam, learning rate {settings['lr']:g} divided by 10 at 60% and 83% of {settings['steps']} steps "
+            f"(the supplement's schedule shape), batch {settings['batch']} windows, seed {settings['seed']}, "
+            "cross-entropy; the last step is shipped. Each window: style drawn uniformly (waltz has most songs), "
+            "then a song and a random offset; "
+            + (f"played up to {100 * STYLE_AUG_TEMPO:g}% faster or slower (chroma and onset resampled in time, the "
+               "bumps, beats per bar and tempo redrawn from the moved beat times: beats per second change, beats "
+               "per bar do not), " if STYLE_AUG_TEMPO else "played at its own tempo (no stretch: see below), ")
+            + "transposed by a random number of semitones (chroma rolled), the onset channel times "
+            f"a gain in [{1 - AUG_GAIN:g}, {1 + AUG_GAIN:g}], plus Gaussian noise (sigma {AUG_NOISE:g})"
+            + (f"; chroma blanked in {100 * AUG_CHROMA_DROP:g}% of windows. " if AUG_CHROMA_DROP else ". ")
+            + f"Both models: Bi-LSTM of {conv.config['hidden']} units each way, dropout {conv.config['dropout']:g}, "
+            "mean over time, then FC; trained by the same code with the same settings.",
+            "",
+            "These settings were chosen with `train --validate`, which holds out training songs by song ("
+            + ", ".join(validation_songs(split, rows))
+            + ") and never loads the test songs; the shipped models were then trained on all training songs.",
+            "",
+        ]
+
+    def _differences(self) -> list[str]:
+        """Where and why the models differ from the paper's."""
+        styles, split, seconds, conv = self.styles, self.split, self.seconds, self.conv
+        return [
+            "## What differs from the paper, and why",
+            "",
+            "- Architecture as in section 4.2 (three temporal conv layers, kernel 2, channels 1-16-24-32, then a "
+            "Bi-LSTM and a fully connected layer; the baseline puts a per-frame fully connected layer in place of "
+            "the convolutions), 30-second windows, cross-entropy.",
+            "- Input: the paper feeds its music features as they are. Here the beat and downbeat activation "
+            "channels are replaced by bumps at the DBN-tracked beats and downbeats. Sampled at 10 fps, madmom's "
+            "100-fps activations miss many of their peaks (a training song's highest sampled beat value ranges "
+            "0.24-0.93), so the metre and tempo that tell these ballroom styles apart (waltz 3 beats a bar at "
+            "83-88 bpm; cha-cha 115-125 bpm; rumba mostly 88-95 bpm) came through blurred; the tracked beats "
+            "carry them intact. On the validation songs, with the same settings, the balanced accuracy of ours by "
+            f"window (by song) rose from {VALIDATION['activations']} to {VALIDATION['bumps']}; the baseline's with "
+            f"bumps is {VALIDATION['baseline']}. DanceNet's own music input is unchanged.",
+            f"- Tango (added with the extra data folder): with the same settings the balanced accuracy on the "
+            f"validation songs is {VALIDATION_WITH_TANGO['200']} by window (by song) at 200 steps and "
+            f"{VALIDATION_WITH_TANGO['400']} at 400: tango's songs (about 120-130 bpm, four beats a bar) are learnt, "
+            "and cha-cha's, in the same tempo range, are taken for tango (see the confusion below). The style can "
+            "always be chosen by hand (`--style`, the panel).",
+            "- Metre and tempo as inputs: from the bumps alone the net had to count beats between "
+            "downbeats and time their spacing, and it called a held-out waltz rumba and cha-cha tango. Now beats per "
+            "bar and the local tempo are two more input columns. The tempo stretch of the augmentation then had to "
+            "go: cha-cha (115-125 bpm here) and tango (125-128 bpm) lie within any stretch tried. Balanced accuracy "
+            "by window (by song) of ours on the validation songs (one tango among them, DANCE_T_3, is taken for a "
+            "cha-cha by every setting):",
+            "",
+            "| setting | validation, balanced by window (by song) |",
+            "|---|---|",
+            *[f"| {setting} | {figures} |" for setting, figures in VALIDATION_METER_TEMPO.items()],
+            "",
+            f"- Styles: the dance styles of the training data ({len(styles)} here) instead of the paper's two music "
+            f"styles, and {sum(seconds[q] for q in split['train']) / 3600:.1f} hours of music instead of 35.7: hence "
+            "the augmentation, the small Bi-LSTM "
+            f"({conv.config['hidden']} units), dropout and the short schedule, all chosen on validation songs.",
+            "",
+        ]
+
+    def _results(self) -> list[str]:
+        """Accuracy on the held-out songs, the confusions and each song."""
+        styles, c, b, split, confusion = self.styles, self.c, self.b, self.split, self.confusion
+        return [
+            "## Held-out results",
+            "",
+            f"Windows every {STYLE_HOP_S:g} s over each test song ({c['windows']} windows, {c['songs']} songs); "
+            "a song's style is the mean of its windows' probabilities.",
+            "",
+            "Balanced accuracy is the mean of the per-style recalls: the fairer number with this many waltzes, "
+            f"since always answering the most common style scores {100 / len(styles):.1f}% on it.",
+            "",
+            "| method | window accuracy | balanced, by window | song accuracy | balanced, by song "
+            "| train window accuracy | training time |",
+            "|---|---|---|---|---|---|---|",
+            f"| Always the most common style | {100 * _majority(c['confusion_window']):.1f}% "
+            f"| {100 / len(styles):.1f}% | {100 * _majority(c['confusion_song']):.1f}% | {100 / len(styles):.1f}% "
+            "| - | - |",
+            *[
+                f"| {name} | {100 * m['window_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_window']):.1f}% "
+                f"| {100 * m['song_accuracy']:.1f}% | {100 * balanced_accuracy(m['confusion_song']):.1f}% "
+                f"| {100 * m['train']['window_accuracy']:.1f}% | {m['train_seconds']} s |"
+                for name, m in (("Baseline (FC + Bi-LSTM)", b), ("Ours (Temporal Conv + Bi-LSTM)", c))
+            ],
+            "",
+            "The paper's Table 2 (its own 35.7 h of music, two styles, accuracy): baseline 88.0%, ours 92.1%. With "
+            f"{len(split['test'])} test songs here, one song is {100 / max(1, len(split['test'])):.1f} points "
+            "of song accuracy: the numbers are indicative only.",
+            "",
+            "### Confusion by window, ours",
+            "",
+            *confusion(c["confusion_window"]),
+            "",
+            "### Confusion by window, baseline",
+            "",
+            *confusion(b["confusion_window"]),
+            "",
+            "### By song",
+            "",
+            "| song | truth | ours | baseline |",
+            "|---|---|---|---|",
+            *[
+                f"| {s} | {p['truth']} | {p['predicted']} ({p['p_truth']:.2f}) "
+                f"| {b['predictions'][s]['predicted']} ({b['predictions'][s]['p_truth']:.2f}) |"
+                for s, p in c["predictions"].items()
+            ],
+            "",
+            "(In brackets: the probability given to the true style.)",
+            "",
+        ]
+
+    def _limits(self) -> list[str]:
+        """What the figures do not promise."""
+        c, b, minority, common, few = self.c, self.b, self.minority, self.common, self.few
+        return [
+            "## Limits",
+            "",
+            f"Held-out songs of the styles other than {common}: ours gets {minority(c)}, the baseline "
+            f"{minority(b)}. Ballroom styles differ mostly in tempo and metre, which the input spells out, but the "
+            f"models have learnt from {few} songs per style apart from {common} and fit their training songs far "
+            "better than new ones: treat the style as a suggestion that the user can override. The models know "
+            "only the styles listed above. Beats per bar set waltz (3) apart; cha-cha, rumba and tango are all 4 "
+            "beats a bar and told apart mostly by tempo, where the tracker's tempo of a rumba is anywhere from 70 "
+            "to 190 bpm (it often counts the beat at 1.5 or 2 times its speed): a rumba tracked at tango's tempo "
+            "(as the test rumba here, 130 bpm; the tangos are at 125-128 bpm) is taken for a tango, and so are "
+            "many windows of a cha-cha at the top of its range (125 bpm).",
+            "",
+        ]
 
 
 def motion_style_card(model: MotionStyleModel, train: Sequence[Dance], test: Sequence[Dance], split: dict) -> str:
@@ -232,10 +277,6 @@ def motion_style_card(model: MotionStyleModel, train: Sequence[Dance], test: Seq
     def minutes(ds: Sequence[Dance], st: str) -> str:
         chosen = [d for d in ds if d.style == st]
         return f"{len(chosen)} ({sum(len(d.positions) for d in chosen) / FPS / 60:.1f} min)"
-
-    def confusion(c: list[list[int]]) -> list[str]:
-        rows = [f"| {st} | " + " | ".join(map(str, row)) + " |" for st, row in zip(styles, c, strict=True)]
-        return ["| truth \\ predicted | " + " | ".join(styles) + " |", "|---" * (len(styles) + 1) + "|", *rows]
 
     majority = max(sum(r) for r in m["confusion_segment"]) / sum(map(sum, m["confusion_segment"]))
     return "\n".join([
@@ -289,7 +330,7 @@ def motion_style_card(model: MotionStyleModel, train: Sequence[Dance], test: Seq
         "",
         "### Confusion by segment",
         "",
-        *confusion(m["confusion_segment"]),
+        *_confusion(styles, m["confusion_segment"]),
         "",
         "### By dance",
         "",
@@ -344,15 +385,10 @@ def validation_sections(folder: Path | None) -> list[str]:
     return lines
 
 
-def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, footfix_info: dict | None,
-               extra: list[str] | None = None) -> str:
-    """The DanceNet model card, from the bundle's training facts, this run's measurements and `extra`
-    sections (validation, learning curve)."""
+def _dancenet_facts(bundle: DanceNetBundle) -> list[str]:
+    """The card's title, data and settings: the bundle's training facts."""
     info, cfg = bundle.info, bundle.model.cfg
-    real, gen = before["summary"]["real"], before["summary"]["generated"]
-    held = "val" if "val_loss" in info else "test"
-    held_name = "validation songs" if held == "val" else "test songs"
-    lines = [
+    return [
         "# DanceNet model card",
         "",
         f"Weights: `dancenet.pt` ({sum(p.numel() for p in bundle.model.parameters()):,} parameters). "
@@ -390,8 +426,50 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
            f"`{info['blend']['end']}` (step {info['blend']['end_steps']}), weight by weight."]
           if "blend" in info else []),
         "",
-        "## Test metrics",
-        f"{held.capitalize()} loss (mixture NLL per modelled channel + 0.1 x contact BCE): "
+    ]
+
+
+def _foot_sections(footfix_info: dict | None) -> list[str]:
+    """The foot clean-up, and the Foot Constraint Model's figures where its training facts are given."""
+    lines = [
+        "",
+        "## Foot clean-up",
+        "Every dance is stood on the floor from its predicted contacts (the root's height only, frame by frame). "
+        + ("The clean-up holds each foot where it stands through each contact the model predicts, and wherever it "
+           "leaves a foot still on the floor, the legs reaching it by two-bone IK (hip and knee; the foot's own turn, "
+           "the path and the upper body kept); no training."
+           if FOOT_CLEANUP == "lock" else f"The clean-up is `{FOOT_CLEANUP}` (`engines/dancenet.py`).")
+        + " Chosen on the validation songs among the contact lock, the Foot Constraint Model and both "
+          "(`dancenet validate --cleanup`; docs/experiments.md).",
+    ]
+    if footfix_info:
+        lines += [
+            "",
+            "## Foot Constraint Model (`footfix.pt`"
+            + ("" if "model" in FOOT_CLEANUP else ", not the default clean-up: `dancenet validate --cleanup model`")
+            + ")",
+            f"Test MSE on simulated sliding (normalised lower-body channels): ours (temporal conv) "
+            f"{footfix_info['ours']['test_mse']:.4f}, baseline (FC + LSTM + FC) "
+            f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
+            f"uncorrected {footfix_info['ours']['test_mse_without_model']:.4f}.",
+            f"- Trained {footfix_info['steps']} steps with sliding weight "
+            f"{footfix_info['contact_weights']['slide_weight']:g} on {footfix_info['dancenet_dances']} of "
+            "DanceNet's dances to the training songs; it corrects the legs and the pelvis' height and tilt, "
+            "never the root's travel (docs/experiments.md: its sweeps of the sliding weight on the validation songs).",
+        ]
+    return lines
+
+
+def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, footfix_info: dict | None,
+               extra: list[str] | None = None) -> str:
+    """The DanceNet model card, from the bundle's training facts, this run's measurements and `extra`
+    sections (validation, learning curve)."""
+    info = bundle.info
+    real, gen = before["summary"]["real"], before["summary"]["generated"]
+    held = "val" if "val_loss" in info else "test"
+    held_name = "validation songs" if held == "val" else "test songs"
+    lines = _dancenet_facts(bundle) + [
+        "## Test metrics",        f"{held.capitalize()} loss (mixture NLL per modelled channel + 0.1 x contact BCE): "
         f"{info.get(f'{held}_loss', float('nan')):.3f} (NLL {info.get(f'{held}_nll', float('nan')):.3f}, "
         f"BCE {info.get(f'{held}_bce', float('nan')):.3f}), on the {held_name}.",
         "",
@@ -418,30 +496,4 @@ def dancenet_card(bundle: DanceNetBundle, before: dict, after: dict | None, foot
         f"- Foot-contact accuracy of DanceNet's predictions against contacts detected on the real dance at the "
         f"same frames: {gen['contact_accuracy']:.3f} (a different dance, so this is agreement, not error).",
     ]
-    lines += [
-        "",
-        "## Foot clean-up",
-        "Every dance is stood on the floor from its predicted contacts (the root's height only, frame by frame). "
-        + ("The clean-up holds each foot where it stands through each contact the model predicts, and wherever it "
-           "leaves a foot still on the floor, the legs reaching it by two-bone IK (hip and knee; the foot's own turn, "
-           "the path and the upper body kept); no training."
-           if FOOT_CLEANUP == "lock" else f"The clean-up is `{FOOT_CLEANUP}` (`engines/dancenet.py`).")
-        + " Chosen on the validation songs among the contact lock, the Foot Constraint Model and both "
-          "(`dancenet validate --cleanup`; docs/experiments.md).",
-    ]
-    if footfix_info:
-        lines += [
-            "",
-            "## Foot Constraint Model (`footfix.pt`"
-            + ("" if "model" in FOOT_CLEANUP else ", not the default clean-up: `dancenet validate --cleanup model`")
-            + ")",
-            f"Test MSE on simulated sliding (normalised lower-body channels): ours (temporal conv) "
-            f"{footfix_info['ours']['test_mse']:.4f}, baseline (FC + LSTM + FC) "
-            f"{footfix_info['baseline_lstm']['test_mse']:.4f}, "
-            f"uncorrected {footfix_info['ours']['test_mse_without_model']:.4f}.",
-            f"- Trained {footfix_info['steps']} steps with sliding weight "
-            f"{footfix_info['contact_weights']['slide_weight']:g} on {footfix_info['dancenet_dances']} of "
-            "DanceNet's dances to the training songs; it corrects the legs and the pelvis' height and tilt, "
-            "never the root's travel (docs/experiments.md: its sweeps of the sliding weight on the validation songs).",
-        ]
-    return "\n".join(lines + (extra or [])) + "\n"
+    return "\n".join(lines + _foot_sections(footfix_info) + (extra or [])) + "\n"
