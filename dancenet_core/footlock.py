@@ -1,5 +1,6 @@
-"""The foot clean-up that keeps the pose: each foot held where it stands while the model says it is planted, the
-leg reaching it by two-bone IK (hip and knee), the foot's own turn and everything above the hips untouched.
+"""The foot clean-up that keeps the pose: each foot held where it stands while the model says it is planted, or
+while it stands still on the floor, the leg reaching it by two-bone IK (hip and knee), the foot's own turn and
+everything above the hips untouched.
 
 Why: the Foot Constraint Model (a network over the lower body) pins the feet by bending the legs away from the
 dancers' (FID_k 44.7 without it, 64.8 with it on the test split). A planted foot only needs its leg to reach
@@ -14,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .floor import toe_ends
 from .kinematics import fk_numpy
 from .motion import Motion
 from .skeleton import BODY_JOINTS, JOINT_INDEX
@@ -22,8 +24,8 @@ LEGS = (("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "ri
 BLEND_S = 0.12  # a hold eases in and out over at least this long (3 frames at 25 fps), so a foot never jumps
 EASE_SPEED = 0.5  # m/s: easing a hold in or out adds at most about this much to the foot's speed
 GAP_S = 1.0  # between two holds of one foot at most this far apart the shift goes straight from one to the other
-GROUND_M = 0.02
-STILL_MPS = 0.5
+GROUND_M = 0.02  # a toe end this near the floor...
+STILL_MPS = 0.5  # ...and slower than this over it stands, whatever the model predicted
 MIN_RUN_S = 0.08  # a predicted contact shorter than this (one frame at 25 fps) is the model's flicker, not a step
 
 
@@ -103,8 +105,7 @@ def planted_feet(motion: Motion, contacts: np.ndarray) -> np.ndarray:
     """Which foot stands on each frame [T, 2] (bool; left, right): where the model predicts a contact, and where a toe
     end it did not plant is on the floor (within GROUND_M of it) and barely moving (under STILL_MPS): a foot left
     standing still on the floor slides as much as a planted one when the body moves on."""
-    toes = fk_numpy(motion.skeleton.feet(), motion.rotations[:, :BODY_JOINTS], motion.root_positions,
-                    with_end_sites=True)[2]
+    toes = toe_ends(motion)
     step = np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1) * motion.fps
     speed = np.concatenate([step[:1], step]) if len(step) else np.zeros(toes.shape[:2])  # frame 0 as frame 1
     return (np.asarray(contacts) > 0.5) | ((toes[:, :, 1] < GROUND_M) & (speed < STILL_MPS))
