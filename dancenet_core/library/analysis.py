@@ -37,7 +37,7 @@ from ..beats import BAS_SMOOTH_S, kinematic_velocity, local_minima
 from ..kinematics import fk_numpy
 from ..motion import Motion
 from ..representation import foot_contacts, heading_frames
-from ..skeleton import BODY_JOINTS, TOE_ENDS
+from ..skeleton import BODY_JOINTS, JOINT_NAMES, TOE_ENDS
 
 MIN_BPM, MAX_BPM = 50.0, 200.0
 TIGHTNESS = 100.0  # Ellis' (and librosa's) weight on even beat spacing
@@ -48,16 +48,29 @@ STYLE_METER = {"waltz": 3, "viennese waltz": 3, "viennese_waltz": 3, "cha-cha": 
                "mambo": 4, "bachata": 4, "merengue": 4, "lindy": 4, "hiphop": 4, "hip-hop": 4, "house": 4,
                "pop": 4, "disco": 4, "latin": 4}
 METERS = (3, 4)
-# The pose is compared after this many bars, weighed so: the feet alternate, so one bar later a dancer often stands
-# in the mirror of the pose (LRL, RLR in a waltz). These weights, the steps' and the prior's were chosen on the
-# training split's dances (docs/library.md).
-BAR_RETURNS, BAR_WEIGHTS = (1, 2, 4), (0.5, 1.0, 1.0)
-STEP_WEIGHT = 0.2  # the steps' regularity, against the pose's return
-PRIOR_BPM, PRIOR_WEIGHT = 110.0, 0.1  # a slight preference for tempi near 110 BPM, between equal readings
+# The legs' pose is compared after one, two and four bars; after one, its mirror counts too (the feet alternate: a
+# bar later a dancer often stands in the mirror of the pose, LRL then RLR in a waltz). These weights and the ones
+# below were chosen on the training split's dances (docs/library.md).
+BAR_RETURNS, BAR_WEIGHTS = (1, 2, 4), (1.0, 1.0, 1.0)
+# How each signal's autocorrelation at so many beats adds to a reading's score: the speed's dips and the feet's
+# speed (a pulse a step) at one and two beats, the pelvis's bob at one; at three beats the feet's speed and the
+# pelvis's height count against (the 3:2 guard: a 4/4 dancer's half-bar pattern read at 3/2 the tempo repeats every
+# three of those beats; a 3/4 bar is still found by the pose's return).
+LAG_WEIGHTS = {"dips": ((1, 0.2), (2, 0.2)), "feet": ((1, 0.3), (2, 0.3), (3, -0.2)),
+               "height": ((1, 0.05), (3, -0.1))}
+BAR_LAG_WEIGHTS = {"feet": 0.05}  # the feet's speed after one bar of the meter read
+PRIOR_BPM, PRIOR_WEIGHT = 110.0, 0.3  # a slight preference for tempi near 110 BPM, between equal readings
+HEIGHT_TREND_S = 2.0  # the pelvis's slow drift (a capture's floor creeping up, a dip): removed from its height
 CANDIDATES = 600  # beat periods tried, evenly in log tempo between MIN_BPM and MAX_BPM
 UNSURE = 0.25  # a confidence under this: `library build` names the clip (give its tempo and meter in the manifest)
 OCTAVE_TOLERANCE = 0.08  # a period within 8% of the best's half, whole or double is the same tempo for the plan
 POSE_DIM = BODY_JOINTS * 3
+LEG_JOINTS = [i for i, n in enumerate(JOINT_NAMES[:BODY_JOINTS])
+              if n.split("_")[-1] in ("hip", "knee", "ankle", "foot")]
+_LEG_NAMES = [JOINT_NAMES[i] for i in LEG_JOINTS]
+# each leg joint's other side, as an index into LEG_JOINTS
+MIRROR = [_LEG_NAMES.index(n.replace("left_", "?").replace("right_", "left_").replace("?", "right_"))
+          for n in _LEG_NAMES]
 FEATURE_DIM = 2 * POSE_DIM + 2  # pose, velocity, foot contacts
 
 
@@ -88,9 +101,9 @@ def heading_local(vectors: np.ndarray, yaw: np.ndarray) -> np.ndarray:
     return np.stack([c * x - s * z, vectors[..., 1], s * x + c * z], axis=-1)
 
 
-def frame_features(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per frame: the boundary features [T, FEATURE_DIM], the mean joint speed [T] (m/s) and the feet's speed over
-    the floor [T] (m/s, both toes': each step moves a foot)."""
+def frame_features(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame: the boundary features [T, FEATURE_DIM], the mean joint speed [T] (m/s), the feet's speed over
+    the floor [T] (m/s, both toes': each step moves a foot) and the pelvis's height [T] (m: its rise and fall)."""
     pos, _, ends = fk_numpy(motion.skeleton, motion.rotations, motion.root_positions, with_end_sites=True)
     body = pos[:, :BODY_JOINTS]
     yaw = heading_frames(motion)
@@ -102,7 +115,7 @@ def frame_features(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     toes = ends[:, list(TOE_ENDS)][..., [0, 2]]
     feet = np.linalg.norm(np.gradient(toes, axis=0), axis=-1).sum(axis=1) * motion.fps if len(toes) > 1 else \
         np.zeros(len(toes))
-    return feats.astype(np.float32), kinematic_velocity(body) * motion.fps, feet
+    return feats.astype(np.float32), kinematic_velocity(body) * motion.fps, feet, body[:, 0, 1]
 
 
 def dip_train(speed: np.ndarray, fps: float) -> np.ndarray:
@@ -120,21 +133,32 @@ def _lagged(x: np.ndarray, lags: np.ndarray) -> np.ndarray:
     return np.interp(lags, np.arange(len(x)), x, right=np.nan)
 
 
-def pose_return(pose: np.ndarray, max_lag: int) -> np.ndarray:
-    """[max_lag]: for each lag (frames), how close the pose comes back after it: 1 - its RMS distance over the
-    distance's mean across lags of 1 to 8 s (1: the same pose; about 0: as far as any). Per dimension through the
-    FFT, so a long clip costs about as much as reading it."""
-    n = len(pose)
-    x = pose - pose.mean(axis=0)
-    f = np.fft.rfft(x, 2 * n, axis=0)
-    cross = np.fft.irfft((f * np.conj(f)), axis=0)[:max_lag].sum(axis=1)
-    sq = np.concatenate([[0.0], np.cumsum((x**2).sum(axis=1))])
+def _rms_after(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
+    """[max_lag]: for each lag L (frames), the RMS over t of |x_t - y_{t+L}| (x, y [T, D], centred alike). Per
+    dimension through the FFT, so a long clip costs about as much as reading it."""
+    n = len(x)
+    cross = np.fft.irfft(np.conj(np.fft.rfft(x, 2 * n, axis=0)) * np.fft.rfft(y, 2 * n, axis=0),
+                         axis=0)[:max_lag].sum(axis=1)
+    sx = np.concatenate([[0.0], np.cumsum((x**2).sum(axis=1))])
+    sy = np.concatenate([[0.0], np.cumsum((y**2).sum(axis=1))])
     lags = np.arange(max_lag)
-    count = np.maximum(n - lags, 1)
-    # mean over t of |x_t|^2 + |x_{t+L}|^2 - 2 x_t.x_{t+L}
-    ms = (sq[n - lags] + (sq[n] - sq[lags]) - 2.0 * cross) / count
-    rms = np.sqrt(np.maximum(ms, 0.0))
-    return 1.0 - rms / max(float(rms[min(max_lag - 1, 25) : min(max_lag, 200)].mean()), 1e-9)
+    # mean over t of |x_t|^2 + |y_{t+L}|^2 - 2 x_t.y_{t+L}
+    ms = (sx[n - lags] + (sy[n] - sy[lags]) - 2.0 * cross) / np.maximum(n - lags, 1)
+    return np.sqrt(np.maximum(ms, 0.0))
+
+
+def pose_return(pose: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two [max_lag] curves: for each lag (frames), how close the legs' pose (`pose`: `frame_features`' body
+    joints relative to the pelvis, heading frame) comes back after it, and how close its mirror (left and right
+    swapped) does: 1 - the RMS distance over the distance's mean across lags of 1 to 8 s (1: the same pose; about
+    0: as far as any). The legs carry a figure's steps; arms in a hold or styled figure by figure mostly add noise."""
+    legs = pose.reshape(len(pose), BODY_JOINTS, 3)[:, LEG_JOINTS]
+    x = (legs - legs.mean(axis=0)).reshape(len(pose), -1)
+    mirror = legs[:, MIRROR] * np.array([-1.0, 1.0, 1.0])
+    y = (mirror - mirror.mean(axis=0)).reshape(len(pose), -1)
+    same = _rms_after(x, x, max_lag)
+    scale = max(float(same[min(max_lag - 1, 25) : min(max_lag, 200)].mean()), 1e-9)
+    return 1.0 - same / scale, 1.0 - _rms_after(x, y, max_lag) / scale
 
 
 def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -146,24 +170,35 @@ def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     return ac / max(float(ac[0]), 1e-12)
 
 
-def tempo_scores(pose: np.ndarray, steps_in: list[np.ndarray], fps: float) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    """Beat periods (frames, [CANDIDATES]) and, per meter, each period's score (the module's docstring); `steps_in`:
-    the signals whose regularity at one and two beats counts (the speed's dips, the feet's speed)."""
+def rhythm_signals(speed: np.ndarray, feet: np.ndarray, height: np.ndarray, fps: float) -> dict[str, np.ndarray]:
+    """The signals of `LAG_WEIGHTS` from `frame_features`' speed, feet's speed and pelvis height."""
+    return {"dips": dip_train(speed, fps), "feet": gaussian_filter1d(feet, 1.0),
+            "height": gaussian_filter1d(height - gaussian_filter1d(height, HEIGHT_TREND_S * fps), 1.0)}
+
+
+def tempo_scores(pose: np.ndarray, signals: dict[str, np.ndarray], fps: float
+                 ) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """Beat periods (frames, [CANDIDATES]) and, per meter, each period's score (the module's docstring); `signals`:
+    `rhythm_signals`, whose autocorrelations count as `LAG_WEIGHTS` says."""
     periods = fps * 60.0 / np.exp(np.linspace(np.log(MIN_BPM), np.log(MAX_BPM), CANDIDATES))
     max_lag = int(np.ceil(max(BAR_RETURNS) * max(METERS) * periods.max())) + 2
-    back = pose_return(pose, min(max_lag, len(pose)))
+    back, mirrored = pose_return(pose, min(max_lag, len(pose)))
     steps = np.zeros(len(periods))
-    for x in steps_in:
-        ac = _autocorrelation(x, min(int(np.ceil(2 * periods.max())) + 2, len(x)))
-        steps += np.nan_to_num(_lagged(ac, periods) + _lagged(ac, 2 * periods))
+    acs = {name: _autocorrelation(x, min(max_lag, len(x))) for name, x in signals.items()}
+    for name, lags in LAG_WEIGHTS.items():
+        for k, w in lags:
+            steps += w * np.nan_to_num(_lagged(acs[name], k * periods))
     prior = PRIOR_WEIGHT * np.exp(-0.5 * np.log2(fps * 60.0 / periods / PRIOR_BPM) ** 2)
     scores = {}
     for m in METERS:
-        returns = np.stack([_lagged(back, k * m * periods) for k in BAR_RETURNS])
+        # after one bar, the pose or its mirror; after two and four, the pose itself
+        returns = np.stack([np.fmax(_lagged(back, k * m * periods), _lagged(mirrored, k * m * periods)) if k == 1
+                            else _lagged(back, k * m * periods) for k in BAR_RETURNS])
+        bar_steps = sum(w * np.nan_to_num(_lagged(acs[name], m * periods)) for name, w in BAR_LAG_WEIGHTS.items())
         seen = np.isfinite(returns)  # a clip too short for four bars is scored on the bars it has
         weight = np.array(BAR_WEIGHTS)[:, None] * seen
         pose_score = (np.where(seen, returns, 0.0) * weight).sum(0) / np.maximum(weight.sum(0), 1e-9)
-        scores[m] = np.where(seen.any(0), pose_score, -np.inf) + STEP_WEIGHT * steps + prior
+        scores[m] = np.where(seen.any(0), pose_score, -np.inf) + steps + bar_steps + prior
     return periods, scores
 
 
@@ -239,7 +274,7 @@ def analyze_clip(motion: Motion, style: str = "", beat_times: np.ndarray | None 
     on those, bars from `downbeat_times`; otherwise on its kinematic beats, as the module's docstring says, at the
     tempo `bpm` and `meter` where given (the user's), the meter of its `style` where known.
     """
-    feats, speed, feet = frame_features(motion)
+    feats, speed, feet, height = frame_features(motion)
     if beat_times is not None and len(beat_times) >= 2:
         beats = np.asarray(beat_times, np.float64) * motion.fps
         keep = (beats >= 0) & (beats <= motion.num_frames - 1)
@@ -251,16 +286,17 @@ def analyze_clip(motion: Motion, style: str = "", beat_times: np.ndarray | None 
         confidence, source = 1.0, "music"
     else:
         v = gaussian_filter1d(speed, BAS_SMOOTH_S * motion.fps)
-        dips = dip_train(speed, motion.fps)
+        signals = rhythm_signals(speed, feet, height, motion.fps)
+        dips = signals["dips"]
         told = meter if meter is not None else STYLE_METER.get(style.strip().lower())
         if bpm is not None:
             period, confidence = motion.fps * 60.0 / bpm, 1.0
             if told is None:
-                periods, scores = tempo_scores(feats[:, :POSE_DIM], [dips, gaussian_filter1d(feet, 1.0)], motion.fps)
+                periods, scores = tempo_scores(feats[:, :POSE_DIM], signals, motion.fps)
                 k = int(np.argmin(np.abs(np.log(periods / period))))
                 told = max(scores, key=lambda m: scores[m][k])
         else:
-            periods, scores = tempo_scores(feats[:, :POSE_DIM], [dips, gaussian_filter1d(feet, 1.0)], motion.fps)
+            periods, scores = tempo_scores(feats[:, :POSE_DIM], signals, motion.fps)
             period, told, confidence = choose_tempo(periods, scores, told)
         beats = refine(v, track_beats(dips, period))
         source = _source(bpm, meter, style)
