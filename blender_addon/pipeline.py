@@ -243,10 +243,34 @@ def apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied
             raise DanceNetError(f"{error_message(e)}; nothing was changed") from e
 
 
-def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
-    """apply_result's steps, unguarded."""
+def _key_takes(target: bpy.types.Object, result: Any, req: DanceRequest, place: Placement, bone_map: dict[str, str],
+               frame_start: int) -> list[bpy.types.Action]:
+    """Each take keyed onto `target` as an action of its own, named and recorded (its settings, song, bone map and
+    figures) so it can be continued or danced again."""
     from dancenet_core.generate import shape_takes
 
+    from . import keyframes  # needs scipy (the core's FK): loaded on first use
+
+    actions = []
+    for k, (motion, keyed) in enumerate(zip(result.motions, shape_takes(result.motions, req), strict=True), 1):
+        name = takes.action_name(req.song, result.style, req.seed, k, len(result.motions))
+        if place.redo_section is not None:
+            name = f"{name} · {place.redo_section} anew"
+        elif place.continues is not None:
+            name = f"{name} · from frame {frame_start + round(req.at_s * req.fps)}"
+        action = keyframes.apply_motion(target, keyed, bone_map, name, frame_start, None, req.root_motion)
+        action[takes.ACTION_PROP] = True
+        takes.store_take(action, motion, panel_settings(req) | {
+            "song": str(req.song), "style": result.style, "start_s": result.start_s,
+            "end_s": result.start_s + result.duration_s, "bone_map": bone_map, "continues": place.continues,
+            "figures": (result.details[k - 1] if k <= len(result.details) else {}).get("danced_figures", []),
+        })  # fmt: skip
+        actions.append(action)
+    return actions
+
+
+def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applied:
+    """apply_result's steps, unguarded."""
     from . import keyframes  # needs scipy (the core's FK): loaded on first use
 
     scene = context.scene
@@ -294,23 +318,8 @@ def _apply_result(context: bpy.types.Context, plan: Plan, result: Any) -> Applie
     kept = _keep_users_action(target)
     if kept:
         notes.append(kept)
-    actions = []
-    frames = 0
-    for k, (motion, keyed) in enumerate(zip(result.motions, shape_takes(result.motions, req), strict=True), 1):
-        name = takes.action_name(req.song, result.style, req.seed, k, len(result.motions))
-        if place.redo_section is not None:
-            name = f"{name} · {place.redo_section} anew"
-        elif place.continues is not None:
-            name = f"{name} · from frame {frame_start + round(req.at_s * fps)}"
-        action = keyframes.apply_motion(target, keyed, bone_map, name, frame_start, None, req.root_motion)
-        action[takes.ACTION_PROP] = True
-        takes.store_take(action, motion, panel_settings(req) | {
-            "song": str(req.song), "style": result.style, "start_s": result.start_s,
-            "end_s": result.start_s + result.duration_s, "bone_map": bone_map, "continues": place.continues,
-            "figures": (result.details[k - 1] if k <= len(result.details) else {}).get("danced_figures", []),
-        })  # fmt: skip
-        actions.append(action)
-        frames = max(frames, round(motion.duration * fps))
+    actions = _key_takes(target, result, req, place, bone_map, frame_start)
+    frames = max(round(motion.duration * fps) for motion in result.motions)
     for action in actions:
         takes.add_take_track(target, action)
     takes.choose_take(target, actions[0])
