@@ -266,9 +266,12 @@ def write_card(settings: MatchSettings, model: MatchModel) -> Path:
 What it is: two small networks that map a bar of music (its accents at {SAMPLES} points over its beats, its chroma,
 onset strength, beat length and beat count, with {m['context']} bars either side) and a bar of motion (each body
 joint relative to the pelvis in the dancer's heading frame, joint speeds, the pelvis' speed and height at the same
-points, and the beat length) to unit vectors whose cosine says how well the motion fits the music. The library
-engine adds it to its plan's costs (`library/choreography.py`) where the library's clips carry no style that the
-plan keeps to. Run time: numpy only (`library/match.py`); weights: `{settings.out.name}`.
+points, and the beat length) to unit vectors whose cosine says how well the motion fits the music, and a style
+head on both. The library engine uses it for a library whose clips name no style (`library/choreography.py`): the
+part's music's style (the head over its bars) against each clip's (the head over its figures), so that such a
+library dances the song's style; the per-bar cosine is available to the plan but off by default, as it did not
+help on the validation songs (docs/matching.md has the plan's figures). Run time: numpy only (`library/match.py`);
+weights: `{settings.out.name}`.
 
 ## Data
 
