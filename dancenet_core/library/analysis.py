@@ -3,17 +3,21 @@ has to match (pose, velocity, foot contact).
 
 A clip from a capture session or a download has no music, so its tempo and bars come from how the dancer moves:
 
-- Bars: dancers repeat their figures, so the pose (body joints relative to the pelvis, in the dancer's heading
-  frame, so that turning and travelling do not count) comes back every bar, two bars and four bars. For each
-  meter (3 or 4 beats a bar) and each beat period from 50 to 200 BPM, the score is how close the pose comes back
-  after one (half weight: the feet alternate, so one bar on a dancer often stands in the mirror of the pose), two
-  and four of its bars (`pose_return`: the RMS pose distance at that lag against its mean), plus a little of how
-  regular the steps are at one and two beats (the autocorrelations of the speed's dips, one pulse per step, and of
-  the feet's speed over the floor) and less of a preference for tempi near 110 BPM (between readings that score
+- Bars: dancers repeat their figures, so the legs' pose (joints relative to the pelvis, in the dancer's heading
+  frame, so that turning and travelling do not count; the legs carry the steps, where arms in a hold or styled
+  figure by figure add noise) comes back every bar, two bars and four bars. For each meter (3 or 4 beats a bar)
+  and each beat period from 50 to 200 BPM, the score is how close the pose comes back after one bar (or its
+  mirror: the feet alternate, so one bar on a dancer often stands in the mirror of the pose, LRL then RLR), two
+  and four of its bars (`pose_return`: the RMS pose distance at that lag against its mean), plus the rhythm of
+  the steps and the body (`LAG_WEIGHTS`: the autocorrelations at one and two beats of the speed's dips, one pulse
+  per step, and of the feet's speed over the floor; the pelvis's bob at one beat; the feet's speed after one bar),
+  less a 3:2 guard (the feet's speed and the pelvis's height repeating every three beats of a reading count
+  against it: a 4/4 dancer's half-bar pattern read at 3/2 of the tempo repeats so, where a real 3/4 bar is still
+  found by the pose's return), and a slight preference for tempi near 110 BPM (between readings that score
   alike). The best (meter, period) is the clip's, unless the clip's style names its meter (`STYLE_METER`: waltz
   3/4; cha-cha, rumba, tango, salsa, swing 4/4...) or the user gave the tempo or meter (`manifest.csv`, an
   action's custom properties in Blender), which are taken as given. The weights were chosen on the training
-  split's dances.
+  split's dances, with made-up stepping figures at 60-120 steps a minute in 3/4 and 4/4 read right.
 - Confidence: how much better that period scores than the best one that is neither it nor its half or double (an
   octave off is harmless: the plan lays a figure at 1, 2 or 1/2 clip beats per song beat, whichever plays it at
   its captured speed), and, where the meter was read from the motion, how much better it scores than the other.
@@ -21,13 +25,16 @@ A clip from a capture session or a download has no music, so its tempo and bars 
   tracker does for audio onsets, at that period: the beat sequence that best trades dip depth against even
   spacing. The downbeat is the phase whose beats start the most energetic steps.
 
-On the 56 Dance with Melody dances against their songs' beats (`dancenet evaluate --library`, figures in
-docs/library.md) this reads the meter of about nine clips in ten and the tempo (or its half or double, within 8%)
-of about four in five from the motion alone; with the style's meter, every meter and about nine tempi in ten.
+On the 56 Dance with Melody dances against their songs' beats (`scripts/clip_analysis.py`, the scoring of
+`dancenet evaluate --library`; figures in docs/library.md) this reads every meter from the motion alone and the
+tempo (or its half or double, within 8%) of 51; with the style's meter the same. Of the five it misses, two
+cha-chas' dancers come back to a pose every 7.0-7.2 of their song's beats where cha-cha figures last 8, and one
+tango's capture is known to be time-compressed: no reading of the motion gives those songs' tempi.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,10 +74,9 @@ OCTAVE_TOLERANCE = 0.08  # a period within 8% of the best's half, whole or doubl
 POSE_DIM = BODY_JOINTS * 3
 LEG_JOINTS = [i for i, n in enumerate(JOINT_NAMES[:BODY_JOINTS])
               if n.split("_")[-1] in ("hip", "knee", "ankle", "foot")]
-_LEG_NAMES = [JOINT_NAMES[i] for i in LEG_JOINTS]
-# each leg joint's other side, as an index into LEG_JOINTS
-MIRROR = [_LEG_NAMES.index(n.replace("left_", "?").replace("right_", "left_").replace("?", "right_"))
-          for n in _LEG_NAMES]
+# each body joint's other side (itself on the spine)
+BODY_MIRROR = [JOINT_NAMES.index(n.replace("left_", "?").replace("right_", "left_").replace("?", "right_"))
+               for n in JOINT_NAMES[:BODY_JOINTS]]
 FEATURE_DIM = 2 * POSE_DIM + 2  # pose, velocity, foot contacts
 
 
@@ -147,14 +153,17 @@ def _rms_after(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
     return np.sqrt(np.maximum(ms, 0.0))
 
 
-def pose_return(pose: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two [max_lag] curves: for each lag (frames), how close the legs' pose (`pose`: `frame_features`' body
+def pose_return(pose: np.ndarray, max_lag: int, joints: Sequence[int] = LEG_JOINTS
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Two [max_lag] curves: for each lag (frames), how close the pose of `joints` (`pose`: `frame_features`' body
     joints relative to the pelvis, heading frame) comes back after it, and how close its mirror (left and right
     swapped) does: 1 - the RMS distance over the distance's mean across lags of 1 to 8 s (1: the same pose; about
-    0: as far as any). The legs carry a figure's steps; arms in a hold or styled figure by figure mostly add noise."""
-    legs = pose.reshape(len(pose), BODY_JOINTS, 3)[:, LEG_JOINTS]
-    x = (legs - legs.mean(axis=0)).reshape(len(pose), -1)
-    mirror = legs[:, MIRROR] * np.array([-1.0, 1.0, 1.0])
+    0: as far as any). The legs by default: they carry a figure's steps, where arms in a hold or styled figure by
+    figure mostly add noise to the tempo's reading."""
+    body = pose.reshape(len(pose), BODY_JOINTS, 3)
+    chosen = body[:, list(joints)]
+    mirror = body[:, [BODY_MIRROR[j] for j in joints]] * np.array([-1.0, 1.0, 1.0])
+    x = (chosen - chosen.mean(axis=0)).reshape(len(pose), -1)
     y = (mirror - mirror.mean(axis=0)).reshape(len(pose), -1)
     same = _rms_after(x, x, max_lag)
     scale = max(float(same[min(max_lag - 1, 25) : min(max_lag, 200)].mean()), 1e-9)

@@ -1,0 +1,97 @@
+"""How well `library build` reads a clip's tempo and meter from its motion alone: every Dance with Melody dance
+(written as a user's clip, no music) against the beats of the song it was danced to, as `dancenet evaluate
+--library` scores it (`evaluation.library_row.clip_analysis`): the meter right, the tempo within 8% of the song's or
+of its half or double; from the motion alone and with the style's meter; over all dances, the training split's
+(where the reading's weights are chosen) and the test split's. `--without` gives the same shares with some dances
+left out as well (dances whose capture's timing against their song is in doubt), never instead of them.
+
+For each dance it also gives how many of its song's beats pass before the dancers come back to a pose, near two of
+the song's bars (`two_bar_beats`: the best lag within 30% of two bars, over the whole dance and each half): dancers
+who keep to the song's beat come back after two bars, 8 beats (6 in a waltz), their figures being a bar or two
+long; a dance that comes back elsewhere through the whole take cannot be read at its song's tempo from its motion.
+
+    .venv/bin/python scripts/clip_analysis.py --without DANCE_C_8 DANCE_C_9 DANCE_T_5
+
+Prints JSON: the shares, the share of wrongly read dances that `library build` names unsure, and each dance read
+wrong. About 15 s once the dataset and its songs' analyses are cached.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from dancenet_core.data.build import MODEL_FPS, build_dataset, mean_skeleton
+from dancenet_core.data.split import load_split
+from dancenet_core.environment import default_data_dir
+from dancenet_core.evaluation.library_row import clip_analysis
+from dancenet_core.library.analysis import POSE_DIM, UNSURE, frame_features, pose_return
+from dancenet_core.representation import decode
+from dancenet_core.skeleton import BODY_JOINTS
+
+HINTS = ("from_motion", "with_style")
+
+
+def shares(rows: list[dict]) -> dict:
+    """Dances counted right of those in `rows`, per hint: meter, tempo, both (counts and shares)."""
+    out: dict = {"dances": len(rows)}
+    for hint in HINTS:
+        meter = sum(r[hint]["meter_right"] for r in rows)
+        tempo = sum(r[hint]["tempo_right"] for r in rows)
+        both = sum(r[hint]["meter_right"] and r[hint]["tempo_right"] for r in rows)
+        out[hint] = {"meter_right": f"{meter}/{len(rows)} ({meter / max(len(rows), 1):.1%})",
+                     "tempo_right": f"{tempo}/{len(rows)} ({tempo / max(len(rows), 1):.1%})",
+                     "both_right": f"{both}/{len(rows)} ({both / max(len(rows), 1):.1%})"}
+    return out
+
+
+def two_bar_beats(pose: np.ndarray, beat: float, meter: int) -> float:
+    """Song beats between the dancers' returns to a pose near two of the song's bars: the lag, within 30% of two bars
+    (`meter` beats of `beat` frames each), at which the whole body's pose comes back best, over `beat`."""
+    lo, hi = int(0.7 * 2 * meter * beat), int(np.ceil(1.3 * 2 * meter * beat))
+    back, _ = pose_return(pose, min(len(pose), hi + 1), joints=range(BODY_JOINTS))
+    return float((lo + int(np.argmax(back[lo : hi + 1]))) / beat) if len(back) > lo else float("nan")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--without", nargs="*", default=[], help="dances to leave out of a second set of shares")
+    args = p.parse_args()
+    data = default_data_dir()
+    split = load_split()
+    pairs = build_dataset(data, progress=False)
+    unknown = sorted(set(args.without) - {q.seq for q in pairs})
+    if unknown:
+        raise SystemExit(f"no dance {', '.join(unknown)} in {data}; name dances as DANCE_C_8")
+    result = clip_analysis(pairs, data, mean_skeleton(pairs), MODEL_FPS, set(split["test"]))
+    clips = result["per_clip"]
+    parts = {"all": clips, "train": [r for r in clips if r["seq"] in set(split["train"])],
+             "test": [r for r in clips if r["seq"] in set(split["test"])]}
+    out = {name: shares(rows) for name, rows in parts.items()}
+    if args.without:
+        out[f"all without {', '.join(args.without)}"] = shares([r for r in clips if r["seq"] not in args.without])
+    skeleton = mean_skeleton(pairs)
+    for q, r in zip(pairs, clips, strict=True):
+        pose = frame_features(decode(q.motion, MODEL_FPS, skeleton))[0][:, :POSE_DIM]
+        beat = MODEL_FPS * 60.0 / r["song_bpm"]
+        meter = r["song_meter"] or 4
+        half = len(pose) // 2
+        r["two_bar_beats"] = [round(two_bar_beats(x, beat, meter), 2) for x in (pose, pose[:half], pose[half:])]
+    out["two_bar_beats"] = {st: {r["seq"]: r["two_bar_beats"] for r in clips if r["style"] == st}
+                            for st in sorted({r["style"] for r in clips})}
+    wrong = [r for r in clips if not all(r[h]["meter_right"] and r[h]["tempo_right"] for h in HINTS)]
+    free_wrong = [r for r in clips if not (r["from_motion"]["meter_right"] and r["from_motion"]["tempo_right"])]
+    out["unsure_of_wrong_from_motion"] = (f"{sum(r['from_motion']['confidence'] < UNSURE for r in free_wrong)}"
+                                          f"/{len(free_wrong)}")
+    out["read_wrong"] = [{"seq": r["seq"], "style": r["style"], "song_bpm": r["song_bpm"],
+                          "song_meter": r["song_meter"],
+                          **{h: {"bpm": r[h]["bpm"], "meter": r[h]["meter"], "confidence": r[h]["confidence"],
+                                 "ratio": round(float(np.float64(r[h]["bpm"]) / r["song_bpm"]), 3)}
+                             for h in HINTS}} for r in wrong]
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
