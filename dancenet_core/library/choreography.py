@@ -237,6 +237,90 @@ def _speed_limit_excess(log_speed: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(log_speed - np.log1p(WARP_RANGE), np.log1p(-WARP_RANGE) - log_speed), 0.0)
 
 
+class _Bars:
+    """What the plan's path through the bars weighs: every figure that may be danced (`figure_states`), its
+    energy and entry steps, the library's boundary features (weighted), and each bar's music, with the costs of
+    a figure on a bar (`unary`) and of a cut between figures (`joins`)."""
+
+    def __init__(self, library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
+                 style: str | None, settings: Settings, match: FigureMatch | None) -> None:
+        self.library, self.grid, self.rng, self.settings, self.match = library, grid, rng, settings, match
+        starts, ratios = self.starts, self.ratios = figure_states(library, grid, style)
+        self.nb = nb = len(library.beats)
+        self.too_short = DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut "
+                                       "a figure from; add longer clips (a few bars each)")
+        if len(starts) == 0:
+            raise self.too_short
+        self.clip = library.beat_clip[starts]
+        csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
+        span = np.maximum(np.round(ratios * grid.meter).astype(np.int64), 1)
+        self.fig_energy = _ranks((csum[np.minimum(starts + span, nb)] - csum[starts]) / span)
+        self.weights = _weights(settings, library.features.shape[1])
+        self.feats = library.features * np.sqrt(self.weights)
+        self.sq = (self.feats**2).sum(1)
+        self.ustarts, self.start_of = np.unique(starts, return_inverse=True)
+        bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
+        frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
+        self.music_rank = _ranks(np.array([onset[a : max(a + 1, b)].mean() for a, b in frames]))
+        self.entry = entry_steps(library, starts)
+        self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
+        self.cache: dict[int, tuple] = {}
+        self.scale: float | None = None
+
+    def joins(self, n_prev: int) -> tuple:
+        """For figures n_prev song beats long: where each ends (an index into the distinct ends), the cost [U, E]
+        of a cut to each distinct start from each distinct end (float32, a row per start: the min over ends runs
+        along memory), and per figure the end it carries on from (its clip's own continuation, -1: none)."""
+        if n_prev not in self.cache:
+            starts, feats, sq, ustarts = self.starts, self.feats, self.sq, self.ustarts
+            ends = starts + self.ratios * n_prev
+            uend, end_of = np.unique(ends, return_inverse=True)
+            at = np.minimum(np.round(uend).astype(np.int64), self.nb - 1)
+            d = np.maximum(sq[at][:, None] + sq[ustarts][None, :] - 2.0 * feats[at] @ feats[ustarts].T, 0.0)
+            if self.scale is None:
+                self.scale = float(np.median(d)) or 1.0
+            k = np.minimum(np.searchsorted(uend, starts), len(uend) - 1)
+            cut = np.ascontiguousarray((d / self.scale + self.settings.cut).T, dtype=np.float32)
+            self.cache[n_prev] = (end_of, cut, np.where(uend[k] == starts, k, -1))
+        return self.cache[n_prev]
+
+    def unary(self, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """[F] each figure's cost on bar b, and how much faster than captured it plays (one speed over the bar)."""
+        library, starts, ratios, settings, match = self.library, self.starts, self.ratios, self.settings, self.match
+        a, n = self.grid.bars[b]
+        song_s = self.grid.beats[a + n] - self.grid.beats[a]
+        end = starts + ratios * n
+        last = np.minimum(np.ceil(end - 1e-9).astype(np.int64), self.nb - 1)
+        fits = (end <= self.nb - 1) & (library.beat_clip[last] == self.clip)
+        clip_s = (beat_frames(library, end) - library.beats[starts]) / library.fps
+        with np.errstate(divide="ignore", invalid="ignore"):
+            log_speed = np.log(clip_s / song_s)
+        fits &= np.isfinite(log_speed)
+        cost = (settings.energy * (self.music_rank[b] - self.fig_energy) ** 2 + settings.tempo * log_speed**2
+                + settings.out_of_range * _speed_limit_excess(log_speed)
+                + self.rng.normal(0.0, settings.noise, len(starts)))
+        if match is not None:
+            cost = cost + settings.match_style * match.style_away(starts, ratios, n)
+            if settings.match:
+                cost = cost + settings.match * (1.0 - match.fit(b, starts, ratios, n))
+        return np.where(fits, cost, np.inf), np.exp(np.nan_to_num(log_speed, nan=0.0, posinf=0.0, neginf=0.0))
+
+    def calm(self, speed: np.ndarray) -> np.ndarray:
+        """[F]: the cost of entering each figure by a cut, for its steps at the cut as fast as it plays them."""
+        return self.settings.calm * np.maximum(self.entry * speed - self.limit, 0.0)
+
+    def first(self, previous: np.ndarray | None) -> np.ndarray:
+        """[F] each figure's cost on the first bar, joined to `previous` (a continued dance's last pose) as a
+        figure's end is."""
+        cost, speed = self.unary(0)
+        if previous is not None:
+            self.joins(self.grid.bars[0][1])  # sets the scale of a join's cost
+            p = previous.astype(np.float32) * np.sqrt(self.weights)
+            join = np.maximum(p @ p + self.sq[self.starts] - 2.0 * self.feats[self.starts] @ p, 0.0)
+            cost = cost + join / self.scale + self.settings.cut + self.calm(speed)
+        return cost
+
+
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
          previous: np.ndarray | None = None, match: FigureMatch | None = None) -> list[tuple[int, float]]:
@@ -244,100 +328,31 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
     dance's last frame), joined to as a figure's end is."""
-    starts, ratios = figure_states(library, grid, style)
-    nb = len(library.beats)
-    too_short = DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut a figure "
-                              "from; add longer clips (a few bars each)")
-    if len(starts) == 0:
-        raise too_short
-    clip = library.beat_clip[starts]
-    csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
-    span = np.maximum(np.round(ratios * grid.meter).astype(np.int64), 1)
-    fig_energy = _ranks((csum[np.minimum(starts + span, nb)] - csum[starts]) / span)
-    weights = _weights(settings, library.features.shape[1])
-    feats = library.features * np.sqrt(weights)
-    sq = (feats**2).sum(1)
-    ustarts, start_of = np.unique(starts, return_inverse=True)
-
-    bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
-    frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
-    music = np.array([onset[a : max(a + 1, b)].mean() for a, b in frames])
-    music_rank = _ranks(music)
-
-    entry = entry_steps(library, starts)
-    limit = max(CALM_LIMIT, float(np.quantile(entry, CALM_SHARE)))
-    cache: dict[int, tuple] = {}
-    scale = None
-
-    def joins(n_prev: int) -> tuple:
-        """For figures n_prev song beats long: where each ends (an index into the distinct ends), the cost [U, E]
-        of a cut to each distinct start from each distinct end (float32, a row per start: the min over ends runs
-        along memory), and per figure the end it carries on from (its clip's own continuation, -1: none)."""
-        nonlocal scale
-        if n_prev not in cache:
-            ends = starts + ratios * n_prev
-            uend, end_of = np.unique(ends, return_inverse=True)
-            at = np.minimum(np.round(uend).astype(np.int64), nb - 1)
-            d = np.maximum(sq[at][:, None] + sq[ustarts][None, :] - 2.0 * feats[at] @ feats[ustarts].T, 0.0)
-            if scale is None:
-                scale = float(np.median(d)) or 1.0
-            k = np.minimum(np.searchsorted(uend, starts), len(uend) - 1)
-            cut = np.ascontiguousarray((d / scale + settings.cut).T, dtype=np.float32)
-            cache[n_prev] = (end_of, cut, np.where(uend[k] == starts, k, -1))
-        return cache[n_prev]
-
-    def unary(b: int) -> tuple[np.ndarray, np.ndarray]:
-        """[F] each figure's cost on bar b, and how much faster than captured it plays (one speed over the bar)."""
-        a, n = grid.bars[b]
-        song_s = grid.beats[a + n] - grid.beats[a]
-        end = starts + ratios * n
-        last = np.minimum(np.ceil(end - 1e-9).astype(np.int64), nb - 1)
-        fits = (end <= nb - 1) & (library.beat_clip[last] == clip)
-        clip_s = (beat_frames(library, end) - library.beats[starts]) / library.fps
-        with np.errstate(divide="ignore", invalid="ignore"):
-            log_speed = np.log(clip_s / song_s)
-        fits &= np.isfinite(log_speed)
-        cost = (settings.energy * (music_rank[b] - fig_energy) ** 2 + settings.tempo * log_speed**2
-                + settings.out_of_range * _speed_limit_excess(log_speed)
-                + rng.normal(0.0, settings.noise, len(starts)))
-        if match is not None:
-            cost = cost + settings.match_style * match.style_away(starts, ratios, n)
-            if settings.match:
-                cost = cost + settings.match * (1.0 - match.fit(b, starts, ratios, n))
-        return np.where(fits, cost, np.inf), np.exp(np.nan_to_num(log_speed, nan=0.0, posinf=0.0, neginf=0.0))
-
-    def calm(speed: np.ndarray) -> np.ndarray:
-        """[F]: the cost of entering each figure by a cut, for its steps at the cut as fast as it plays them."""
-        return settings.calm * np.maximum(entry * speed - limit, 0.0)
-
-    cost, speed = unary(0)
-    if previous is not None:
-        joins(grid.bars[0][1])  # sets the scale of a join's cost
-        p = previous.astype(np.float32) * np.sqrt(weights)
-        cost = cost + np.maximum(p @ p + sq[starts] - 2.0 * feats[starts] @ p, 0.0) / scale + settings.cut + calm(speed)
+    bars = _Bars(library, grid, onset, rng, style, settings, match)
+    cost = bars.first(previous)
     if not np.isfinite(cost).any():
-        raise too_short
-    back = np.zeros((len(grid.bars), len(starts)), np.int64)
+        raise bars.too_short
+    back = np.zeros((len(grid.bars), len(bars.starts)), np.int64)
     for b in range(1, len(grid.bars)):
-        end_of, cut_cost, carries = joins(grid.bars[b - 1][1])
+        end_of, cut_cost, carries = bars.joins(grid.bars[b - 1][1])
         # the cheapest figure ending at each distinct end
         order = np.lexsort((cost, end_of))
         best = order[np.searchsorted(end_of[order], np.arange(cut_cost.shape[1]))]
         ending = cost[best]
         total = cut_cost + ending.astype(np.float32)[None, :]
         came = np.argmin(total, axis=1)
-        u, speed = unary(b)
-        by_cut = total[np.arange(len(ustarts)), came][start_of] + calm(speed)
+        u, speed = bars.unary(b)
+        by_cut = total[np.arange(len(bars.ustarts)), came][bars.start_of] + bars.calm(speed)
         by_carry = np.where(carries >= 0, ending[np.maximum(carries, 0)], np.inf)
         carry = by_carry <= by_cut
-        back[b] = np.where(carry, best[np.maximum(carries, 0)], best[came[start_of]])
+        back[b] = np.where(carry, best[np.maximum(carries, 0)], best[came[bars.start_of]])
         cost = u + np.where(carry, by_carry, by_cut)
         if not np.isfinite(cost).any():
-            raise too_short
+            raise bars.too_short
     path = [int(np.argmin(cost))]
     for b in range(len(grid.bars) - 1, 0, -1):
         path.append(int(back[b, path[-1]]))
-    return [(int(starts[k]), float(ratios[k])) for k in path[::-1]]
+    return [(int(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
 
 
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
