@@ -25,7 +25,7 @@ from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
-from .returns import carry_on, dance_returns, figures_as_danced
+from .returns import JOIN_BLEND_S, carry_on, dance_returns, figures_as_danced
 from .rootmotion import apply_mode
 
 
@@ -122,8 +122,8 @@ def _dance_section(engine: Engine, analysis: MusicAnalysis, request: DanceReques
     start, end = part
     at_s = section.start_s - start
     kept = dict(continue_from=dance, at_s=at_s) if at_s * dance.fps > DIFFERENCES else {}
-    sub = replace(request, takes=1, end_s=min(end, section.end_s), sections=(), returns="anew", redo_section=None,
-                  **kept)
+    sub = replace(request, takes=1, end_s=min(end, section.end_s + JOIN_BLEND_S), sections=(), returns="anew",
+                  redo_section=None, **kept)  # on past the section, to crossfade into the dance after it
     return engine.dance(sub, analysis, report, cancelled)
 
 
@@ -135,7 +135,8 @@ def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, reque
     section = section_named(form, request.redo_section, part)
     takes = _dance_section(engine, analysis, request, request.continue_from, section, part, report, cancelled)
     kept = request.continue_from.resampled(takes.motions[0].fps)
-    takes.motions = [carry_on(m, kept, m.num_frames) for m in takes.motions]
+    leave = round((section.end_s - part[0]) * kept.fps)
+    takes.motions = [carry_on(m, kept, leave) for m in takes.motions]
     takes.contacts = []  # the kept dance has none
     return takes
 
@@ -150,10 +151,10 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
             sub = replace(request, style=o.style or request.style, energy=o.energy or request.energy,
                           seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
             new = _dance_section(engine, analysis, sub, motion, section, part, report, cancelled)
-            danced = new.motions[0]
-            takes.motions[k] = carry_on(danced, motion, danced.num_frames)
+            leave = min(round((section.end_s - part[0]) * motion.fps), new.motions[0].num_frames)
+            takes.motions[k] = carry_on(new.motions[0], motion, leave)
             if k < len(takes.contacts) and new.contacts:
-                takes.contacts[k] = np.concatenate([new.contacts[0], takes.contacts[k][danced.num_frames:]])
+                takes.contacts[k] = np.concatenate([new.contacts[0][:leave], takes.contacts[k][leave:]])
     return takes
 
 

@@ -49,6 +49,7 @@ from ..representation import decode
 from ..skeleton import BODY_JOINTS
 from . import drift
 from .dance_features import geometric_features, kinetic_features, smpl24_positions
+from .form import danced_again, mean_likeness, song_forms
 from .library_row import clip_analysis, library_note, library_row, music_library, users_library
 from .metrics import (
     body_relative_segments,
@@ -84,6 +85,7 @@ class DanceSet:
     styles: list[str] = field(default_factory=list)
     beats_s: list[np.ndarray] = field(default_factory=list)
     info: dict = field(default_factory=dict)
+    songs: list[str] = field(default_factory=list)  # the sequence whose song each dance was danced to
 
 
 def segments(positions: np.ndarray, fps: float, seconds: float = SEGMENT_S) -> list[np.ndarray]:
@@ -107,9 +109,11 @@ def segment_features(dances: list[np.ndarray], styles: list[str], fps: float, st
     return {"k": np.stack(kin), "g": np.stack(geo), "style": np.stack(emb), "hit": np.array(hit)}
 
 
-def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: MotionStyleModel) -> dict[str, dict]:
+def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: MotionStyleModel,
+            forms: dict | None = None) -> dict[str, dict]:
     """Every column of the table for every row; FIDs and diversities in the reference set's normalisation;
-    `reference["library"]` (body-relative 5-s segments of the training dances) gives the replay column."""
+    `reference["library"]` (body-relative 5-s segments of the training dances) gives the replay column; `forms`
+    (each song's form and the dance's start in it) the return likeness of the rows that name their songs."""
 
     table = {}
     for row in rows:
@@ -132,6 +136,8 @@ def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: Motion
         segs = np.concatenate([body_relative_segments(p[:, :BODY_JOINTS], fps, hop_s=2.0) for p in positions])
         r["replay_m"] = float(np.median(nearest_segment_distance(segs, reference["library"])))
         r["segments"] = int(len(feats["hit"]))
+        if forms and row.songs:
+            r["return_likeness"] = mean_likeness(row.dances, row.songs, forms)
         table[row.name] = r | {"label": row.label, **row.info}
     return table
 
@@ -258,6 +264,12 @@ def markdown(table: dict[str, dict], seconds: float, steps: int, takes: int, seg
               "", "| model | " + " | ".join(styles) + " |", "|---|" + "---|" * len(styles)]
     lines += [f"| {r['label']} | " + " | ".join(f"{r['floor_reach_by_style'][s]:.2f}" if s in r["floor_reach_by_style"]
                                                 else "-" for s in styles) + " |" for r in table.values()]
+    alike = [r for r in table.values() if r.get("return_likeness") is not None]
+    if alike:
+        lines += ["", "Where the music returns: the pose distance between occurrences of a section of the song's "
+                  "form over that between different sections (0: danced again exactly; about 1: no more alike "
+                  "than different sections):", "", "| model | return likeness |", "|---|---|"]
+        lines += [f"| {r['label']} | {r['return_likeness']:.2f} |" for r in alike]
     lines += [
         "",
         "BAS own/other songs: each dance's Beat Align Score against its own song's beats over its score against "
@@ -337,7 +349,16 @@ def compare(args: argparse.Namespace) -> int:
         users_row = next(r for r in rows if r.name == "library")
         users_row.info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
                                                         set(split["test"]))
-    table = measure(rows, ref_feats, fps, style_net)
+    forms = song_forms(test_pairs, data)
+    real.songs = [p.seq for p in test_pairs]
+    for row in rows[1:]:
+        row.songs = [p.seq for p in test_pairs for _ in range(args.takes)]
+    for name in ("dancenet_shipped_footfix", "library"):  # the defaults: returning sections danced again
+        row = next((r for r in rows if r.name == name), None)
+        if row is not None:
+            rows.append(DanceSet(f"{name}_returns", f"{row.label}, returns danced again (the default)",
+                                 danced_again(row.dances, row.songs, forms), row.styles, row.beats_s, {}, row.songs))
+    table = measure(rows, ref_feats, fps, style_net, forms)
 
     args.out.mkdir(parents=True, exist_ok=True)
     seconds = time.perf_counter() - t0

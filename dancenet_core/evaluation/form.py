@@ -16,6 +16,7 @@ import numpy as np
 
 from ..atomic import atomic_open
 from ..errors import DanceNetError
+from ..motion import Motion
 from ..music.features import MusicAnalysis
 from ..music.form import SongForm
 
@@ -126,3 +127,31 @@ def arranged_song(data_dir: Path, path: Path, form: str = "ABACAB", songs: tuple
         parts[letter] = audio[int(down[4] * rate):int(down[4 + bars] * rate)]
     sf.write(str(path), np.concatenate([parts[c] for c in form]), rate)
     return path
+
+
+def song_forms(pairs: list, data_dir: Path) -> dict[str, tuple[SongForm, float]]:
+    """Each paired sequence's song form and where in the song its dance starts (the manifest's music offset)."""
+    from ..data.dance_with_melody import read_manifest
+    from ..music.features import analyze_music
+    from ..music.form import song_form
+
+    seqs = {s.seq: s for s in read_manifest(data_dir)}
+    return {p.seq: (song_form(analyze_music(seqs[p.seq].audio)), float(seqs[p.seq].music_offset_s)) for p in pairs}
+
+
+def mean_likeness(dances: list[Motion], songs: list[str], forms: dict[str, tuple[SongForm, float]]) -> float | None:
+    """The mean return likeness of the dances whose songs have returns within them (None: no such dance)."""
+    from ..representation import heading_frames
+
+    values = [return_likeness(m.positions(), heading_frames(m), m.fps, *forms[seq])
+              for m, seq in zip(dances, songs, strict=True) if seq in forms]
+    values = [v for v in values if v is not None]
+    return float(np.mean(values)) if values else None
+
+
+def danced_again(dances: list[Motion], songs: list[str], forms: dict[str, tuple[SongForm, float]],
+                 mode: str = "repeat") -> list[Motion]:
+    """The dances with their songs' returns danced again, as `generate` dances them by default."""
+    from ..returns import dance_returns
+
+    return [dance_returns(m, *forms[seq], mode)[0] for m, seq in zip(dances, songs, strict=True)]
