@@ -284,16 +284,99 @@ def markdown(table: dict[str, dict], seconds: float, steps: int, takes: int, seg
     return "\n".join(lines) + "\n"
 
 
+def _variants(args: argparse.Namespace) -> list[str]:
+    """The compared models the command line asks for (none with --library-only), checked by name."""
+    variants = [] if args.library_only else list(VARIANTS) if args.variants is None else args.variants
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown:
+        raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
+    return variants
+
+
+def _dancenet_rows(args: argparse.Namespace, variants: list[str], test_pairs: list, data: Path, beats: dict,
+                   shipped: DanceNetBundle, temperature: float) -> list[DanceSet]:
+    """The trained models' dances, then the shipped weights' with and without the foot clean-up."""
+    rows = []
+    mel_pairs = None
+    for v in variants:
+        bundle = DanceNetBundle.load(run_dir(args.runs, v) / "dancenet.pt")
+        tp = test_pairs
+        if music_features(v) == "mel":
+            mel_pairs = mel_pairs or {p.seq: p for p in with_mel_music(test_pairs, data)}
+            tp = [mel_pairs[p.seq] for p in test_pairs]
+        rows.append(dance_row(v, VARIANTS[v], bundle, tp, beats, args.takes, temperature))
+        print(f"  {v}: {len(rows[-1].dances)} dances")
+    if not args.library_only:
+        rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
+                              args.takes, temperature))
+        rows.append(dance_row("dancenet_shipped_footfix", f"DanceNet, shipped weights + foot clean-up ({FOOT_CLEANUP})",
+                              shipped,
+                              test_pairs, beats, args.takes, temperature, footfix=True))
+    return rows
+
+
+def _library_rows(args: argparse.Namespace, pairs: dict, split: dict, test_pairs: list, data: Path,
+                  shipped: DanceNetBundle, fps: float) -> list[DanceSet]:
+    """The motion library engine's dances: the users' path, clips cut on their music's beats, and the clips'
+    styles hidden (energy alone, the learned match); the users' row carries the clip analysis' check."""
+    rows = []
+    train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
+    users = users_library(train_pairs, shipped.skeleton, fps)
+    for name, label, library, hide, match in (
+            ("library", "Motion library engine (users' path: training dances as BVH, no music)", users, False,
+             None),
+            ("library_music", "Motion library engine, clips cut on their music's beats (upper bound)",
+             music_library(train_pairs, data, shipped.skeleton, fps), False, None),
+            ("library_unsorted", "Motion library engine, users' path, clips' styles hidden: energy alone", users,
+             True, None),
+            ("library_unsorted_match", "Motion library engine, users' path, clips' styles hidden: learned match",
+             users, True, MatchModel.load())):
+        row = DanceSet(name, label)
+        row.dances, row.styles, row.beats_s, row.info = library_row(library, test_pairs, data, fps, args.takes,
+                                                                    hide, match)
+        rows.append(row)
+        print(f"  {name}: {len(row.dances)} dances", flush=True)
+    rows[0].info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
+                                                  set(split["test"]))
+    return rows
+
+
+def _with_returns(rows: list[DanceSet], test_pairs: list, data: Path, takes: int) -> dict:
+    """Each row told its songs, and the default rows again with their returning sections danced again; the
+    songs' forms."""
+    forms = song_forms(test_pairs, data)
+    rows[0].songs = [p.seq for p in test_pairs]
+    for row in rows[1:]:
+        row.songs = [p.seq for p in test_pairs for _ in range(takes)]
+    for name in ("dancenet_shipped_footfix", "library"):  # the defaults: returning sections danced again
+        row = next((r for r in rows if r.name == name), None)
+        if row is not None:
+            rows.append(DanceSet(f"{name}_returns", f"{row.label}, returns danced again (the default)",
+                                 danced_again(row.dances, row.songs, forms), row.styles, row.beats_s, {}, row.songs))
+    return forms
+
+
+def _pictures(out: Path, test_pairs: list, rows: list[DanceSet], takes: int, fps: float) -> None:
+    """Figure 3b and the contact sheet on the first test waltz (else the first test sequence)."""
+    real = rows[0]
+    i = next((i for i, p in enumerate(test_pairs) if p.style == "waltz"), 0)
+    gen_row = next(r for r in rows if r.name == "dancenet_shipped")
+    figure_3b(out / "figure_3b.png", test_pairs[i].music, real.beats_s[i], real.dances[i].positions(),
+              gen_row.dances[i * takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
+    foot_row = next(r for r in rows if r.name == "dancenet_shipped_footfix")
+    first_20s = slice(0, int(20 * fps))
+    contact_sheet([(f"real {test_pairs[i].seq}", real.dances[i][first_20s]),
+                   ("DanceNet", foot_row.dances[i * takes][first_20s])],
+                  out / "contact_sheet.png", cols=6, rows=2, width=240, height=200)
+
+
 def compare(args: argparse.Namespace) -> int:
     """`dancenet evaluate` (this module's docstring): train what is missing, dance, measure, write the table."""
     t0 = time.perf_counter()
     data = args.data or default_data_dir()
     if not data.is_dir():
         raise DanceNetError(f"no dataset at {data}; pass --data DIR (the shared data folder)")
-    variants = [] if args.library_only else list(VARIANTS) if args.variants is None else args.variants
-    unknown = [v for v in variants if v not in VARIANTS]
-    if unknown:
-        raise DanceNetError(f"unknown model(s) {', '.join(unknown)}; choose from {', '.join(VARIANTS)}")
+    variants = _variants(args)
     temperature = DEFAULT_TEMPERATURE if args.temperature is None else args.temperature
     if variants:
         print(f"training {len(variants)} models ({args.steps} steps each, {args.jobs} at a time)")
@@ -313,51 +396,10 @@ def compare(args: argparse.Namespace) -> int:
                     for p in pairs.values() if p.seq in set(split["train"]) and p.style in style_net.styles]
     ref_feats = reference_features(train_dances, fps, style_net)
 
-    rows = [real]
-    mel_pairs = None
-    for v in variants:
-        bundle = DanceNetBundle.load(run_dir(args.runs, v) / "dancenet.pt")
-        tp = test_pairs
-        if music_features(v) == "mel":
-            mel_pairs = mel_pairs or {p.seq: p for p in with_mel_music(test_pairs, data)}
-            tp = [mel_pairs[p.seq] for p in test_pairs]
-        rows.append(dance_row(v, VARIANTS[v], bundle, tp, beats, args.takes, temperature))
-        print(f"  {v}: {len(rows[-1].dances)} dances")
-    if not args.library_only:
-        rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
-                              args.takes, temperature))
-        rows.append(dance_row("dancenet_shipped_footfix", f"DanceNet, shipped weights + foot clean-up ({FOOT_CLEANUP})",
-                              shipped,
-                              test_pairs, beats, args.takes, temperature, footfix=True))
+    rows = [real, *_dancenet_rows(args, variants, test_pairs, data, beats, shipped, temperature)]
     if args.library or args.library_only:
-        train_pairs = [p for p in pairs.values() if p.seq in set(split["train"])]
-        users = users_library(train_pairs, shipped.skeleton, fps)
-        for name, label, library, hide, match in (
-                ("library", "Motion library engine (users' path: training dances as BVH, no music)", users, False,
-                 None),
-                ("library_music", "Motion library engine, clips cut on their music's beats (upper bound)",
-                 music_library(train_pairs, data, shipped.skeleton, fps), False, None),
-                ("library_unsorted", "Motion library engine, users' path, clips' styles hidden: energy alone", users,
-                 True, None),
-                ("library_unsorted_match", "Motion library engine, users' path, clips' styles hidden: learned match",
-                 users, True, MatchModel.load())):
-            row = DanceSet(name, label)
-            row.dances, row.styles, row.beats_s, row.info = library_row(library, test_pairs, data, fps, args.takes,
-                                                                        hide, match)
-            rows.append(row)
-            print(f"  {name}: {len(row.dances)} dances", flush=True)
-        users_row = next(r for r in rows if r.name == "library")
-        users_row.info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
-                                                        set(split["test"]))
-    forms = song_forms(test_pairs, data)
-    real.songs = [p.seq for p in test_pairs]
-    for row in rows[1:]:
-        row.songs = [p.seq for p in test_pairs for _ in range(args.takes)]
-    for name in ("dancenet_shipped_footfix", "library"):  # the defaults: returning sections danced again
-        row = next((r for r in rows if r.name == name), None)
-        if row is not None:
-            rows.append(DanceSet(f"{name}_returns", f"{row.label}, returns danced again (the default)",
-                                 danced_again(row.dances, row.songs, forms), row.styles, row.beats_s, {}, row.songs))
+        rows += _library_rows(args, pairs, split, test_pairs, data, shipped, fps)
+    forms = _with_returns(rows, test_pairs, data, args.takes)
     table = measure(rows, ref_feats, fps, style_net, forms)
 
     args.out.mkdir(parents=True, exist_ok=True)
@@ -372,16 +414,7 @@ def compare(args: argparse.Namespace) -> int:
     print(md)
     if args.library_only:
         return 0
-    # Figure 3b and the contact sheet on the first test waltz (else the first test sequence).
-    i = next((i for i, p in enumerate(test_pairs) if p.style == "waltz"), 0)
-    gen_row = next(r for r in rows if r.name == "dancenet_shipped")
-    figure_3b(args.out / "figure_3b.png", test_pairs[i].music, real.beats_s[i], real.dances[i].positions(),
-              gen_row.dances[i * args.takes].positions(), fps, f"{test_pairs[i].seq} ({test_pairs[i].style})")
-    foot_row = next(r for r in rows if r.name == "dancenet_shipped_footfix")
-    first_20s = slice(0, int(20 * fps))
-    contact_sheet([(f"real {test_pairs[i].seq}", real.dances[i][first_20s]),
-                   ("DanceNet", foot_row.dances[i * args.takes][first_20s])],
-                  args.out / "contact_sheet.png", cols=6, rows=2, width=240, height=200)
+    _pictures(args.out, test_pairs, rows, args.takes, fps)
     print(f"wrote {args.out / 'comparison.md'}, comparison.json, figure_3b.png, contact_sheet.png "
           f"({seconds / 60:.1f} min)")
     return 0
