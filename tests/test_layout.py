@@ -90,6 +90,33 @@ def test_import_contracts_hold() -> None:
     assert out.returncode == 0, out.stdout[-3000:]
 
 
+LONGEST_FUNCTION = 80  # lines
+MOST_PARAMETERS = 12
+
+
+def _functions(package: str) -> list[tuple[str, int, int]]:
+    """(where, lines, parameters) of every function and method in `package`, nested ones included."""
+    out = []
+    for path in sorted((REPO / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                a = node.args
+                count = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (
+                    a.kwarg is not None)
+                out.append((f"{path.relative_to(REPO)}:{node.lineno} {node.name}", node.end_lineno - node.lineno + 1,
+                            count))
+    return out
+
+
+@pytest.mark.parametrize("package", ["dancenet_core", "blender_addon"])
+def test_no_function_is_long_or_takes_many_parameters(package: str) -> None:
+    """A function a reader takes in at once: at most 80 lines and 12 parameters (a numba kernel takes its arrays
+    as one typed bundle, runtime.sampler.Arrays)."""
+    found = _functions(package)
+    assert found
+    assert [(f, n) for f, n, _p in found if n > LONGEST_FUNCTION] == []
+    assert [(f, p) for f, _n, p in found if p > MOST_PARAMETERS] == []
+
 
 def _imports(package: str) -> dict[str, set[str]]:
     """Each module of `package` and the modules of it that it imports, at its top or inside a function."""
