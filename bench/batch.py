@@ -1,8 +1,8 @@
 """`dancenet batch` throughput, printed as JSON: a catalog of songs made here (30 to 60 s each) danced from a cold
 music cache by one worker, by two (`--jobs 2`) and by a Ray cluster started on this machine with 2 CPUs
 (`--cluster ray --jobs 2`), each run a fresh command, as a user runs it (worker or Ray start-up included).
-Gives songs per minute, the ratios (jobs 2 over jobs 1, Ray over jobs 2: measured in the same run, as this
-machine is shared), each worker's peak resident memory (from batch.json), whether the three runs wrote the same
+Gives songs per minute, the ratios (jobs 2 over jobs 1, Ray over jobs 2: of the best runs, and round by round,
+as this machine is shared), each worker's peak resident memory (from batch.json), whether the three runs wrote the same
 bytes, and what the shared machine gave at the time: the load average, and how much more work two busy processes
 got done than one (before each round and after the last; 2.0 on two idle cores), the most --jobs 2 can gain.
 
@@ -121,6 +121,10 @@ def main() -> None:
         "song_seconds_range": [round(min(lengths), 1), round(max(lengths), 1)],
         "jobs_2_over_jobs_1": round(throughput["jobs_2"] / throughput["jobs_1"], 3),
         "ray_over_jobs_2": round(throughput["ray_2cpu"] / throughput["jobs_2"], 3),
+        "each_round": [{"jobs_2_over_jobs_1": round(j2["songs_per_minute"] / j1["songs_per_minute"], 3),
+                        "ray_over_jobs_2": round(ray["songs_per_minute"] / j2["songs_per_minute"], 3),
+                        "two_busy_processes_over_one_before": before}
+                       for j1, j2, ray, before in zip(*results.values(), machine, strict=False)],
         "same_bytes_in_every_run": identical,
         "runs": best,
         "all_runs": results,

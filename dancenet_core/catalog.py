@@ -27,6 +27,7 @@ import json
 import multiprocessing as mp
 import os
 import signal
+import socket
 import sys
 import tempfile
 import time
@@ -377,8 +378,9 @@ def run_catalog(songs: list[CatalogSong], out: Path, task: SongTask, *, where: W
     """Dance every song of the catalog into `out`/<folder>, skipping those already done for the same request
     (unless `force`), and return the status table (also written to `out`). `report` hears of each song as it
     ends, skipped ones first."""
-    if where == "ray":
-        ray_module()  # a missing Ray is said before anything is written
+    if where == "ray":  # a missing Ray, or a cluster that does not answer, is said before anything is written
+        ray_module()
+        _check_reachable(address or os.environ.get("RAY_ADDRESS"))
     check_folder_writable(out)
     remove_leftovers(out)
     remove_leftovers(out / RECORDS)
@@ -533,8 +535,13 @@ def _run_ray(todo: list, task: SongTask, out: Path, jobs: int, address: str | No
     started = not ray.is_initialized()
     if started:
         local = address is None and not os.environ.get("RAY_ADDRESS")
-        ray.init(address=address, num_cpus=max(1, jobs) if local else None, include_dashboard=False,
-                 logging_level="ERROR", configure_logging=True)
+        try:
+            ray.init(address=address, num_cpus=max(1, jobs) if local else None, include_dashboard=False,
+                     logging_level="ERROR", configure_logging=True)
+        except (ConnectionError, RuntimeError, ValueError) as e:
+            where = address or os.environ.get("RAY_ADDRESS") or "this machine"
+            raise DanceNetError(f"cannot start or reach Ray at {where}: {first_line(e)}; start the cluster with "
+                                "`ray start --head` (docs/catalog.md) or check --address") from e
     # Songs side by side, the analysis of each in its task's process alone.
     env = {"DANCENET_WORKERS": "1"}
     remote = ray.remote(_ray_song).options(num_cpus=1, max_retries=1, runtime_env={"env_vars": env})
@@ -570,6 +577,18 @@ def _run_ray(todo: list, task: SongTask, out: Path, jobs: int, address: str | No
             ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
+
+
+def _check_reachable(address: str | None) -> None:
+    """A cluster's `host:port` answers, or a one-line error in seconds (Ray itself retries for minutes)."""
+    host, _colon, port = (address or "").rpartition("://")[2].rpartition(":")
+    if not host or not port.isdigit():  # "auto", or none: Ray finds or starts its own
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=10).close()
+    except OSError as e:
+        raise DanceNetError(f"no Ray cluster answers at {address} ({e.strerror or e}); start its head with "
+                            "`ray start --head` (docs/catalog.md) or check --address") from None
 
 
 def _ray_song(task: SongTask, song: CatalogSong, data: bytes, rid: str) -> tuple[dict[str, Any], dict[str, bytes]]:

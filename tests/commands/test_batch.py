@@ -9,6 +9,7 @@ import json
 import os
 import random
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -314,6 +315,20 @@ def test_without_ray_the_cluster_is_one_line(songs: Path, tmp_path: Path, monkey
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'pip install "dancenet[cluster]"' in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_cluster_that_does_not_answer_is_one_line_in_seconds(songs: Path, tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture) -> None:
+    pytest.importorskip("ray")
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t = time.monotonic()
+    assert main(["batch", str(songs), "-o", str(tmp_path / "out"), "--cluster", "ray",
+                 "--address", f"127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"no Ray cluster answers at 127.0.0.1:{port}" in err[0], err
+    assert time.monotonic() - t < 30 and not (tmp_path / "out").exists()
 
 
 def test_a_local_ray_cluster_writes_the_same_bytes(songs: Path, reference: dict, tmp_path: Path,
