@@ -84,6 +84,8 @@ def clean_feet(bundle: Bundle, feats: np.ndarray, cleanup: str | None = FOOT_CLE
         motion.root_positions[:, 1] = out[:, 1]
         locked = lock_feet(motion, planted_feet(motion, contacts))
         out[:, layout.rotations] = locked.rotations[:, 1:].reshape(len(out), -1)
+        # A leg that cannot reach its held foot lifts it: stand the locked dance on the floor once more.
+        out[:, 1] += floor_shift(locked, contacts)
     return out
 
 
