@@ -13,7 +13,7 @@ from test_library import song
 from dancenet_core.bvh import write_bvh
 from dancenet_core.cli import main
 from dancenet_core.evaluation.metrics import mean_joint_speed
-from dancenet_core.library.analysis import analyze_clip
+from dancenet_core.library.analysis import POSE_DIM, analyze_clip, frame_features, pose_return
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import WARP_RANGE, choreograph
 from dancenet_core.library.store import MotionLibrary
@@ -105,3 +105,22 @@ def test_the_manifest_gives_the_tempo_and_meter(tmp_path: Path, monkeypatch: pyt
     assert main(["library", "build", str(folder)]) == 2
     err = capsys.readouterr().err.strip()
     assert "line 2: bpm 'fast' is not beats per minute" in err and len(err.splitlines()) == 1
+
+
+def test_a_dancer_in_the_mirror_of_the_pose_one_bar_on_comes_back_as_the_mirror() -> None:
+    """A figure led by the left leg one bar and the right the next (LRL, RLR): after one bar the legs' pose is the
+    mirror of what it was, after two the pose itself, and `pose_return` says so (its mirror curve is how the
+    analysis counts the one-bar return)."""
+    bar_s = 2.0
+    t = np.arange(int(round(16 * bar_s * FPS))) / FPS
+    lead = np.sin(2 * np.pi * t / (2 * bar_s)) ** 3  # one leg leads for a bar, then the other
+    rot = np.zeros((len(t), DEFAULT_SKELETON.num_joints, 3))
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        rot[:, JOINT_INDEX[f"{side}_hip"], 0] = 0.6 * sign * lead
+        rot[:, JOINT_INDEX[f"{side}_knee"], 0] = 0.5 * np.clip(sign * lead, 0.0, None)
+    root = np.stack([np.zeros_like(t), np.full_like(t, 0.9), 0.2 * t], axis=1)
+    pose = frame_features(Motion(rot, root, FPS))[0][:, :POSE_DIM]
+    bar = int(bar_s * FPS)
+    same, mirrored = pose_return(pose, 3 * bar)
+    assert mirrored[bar] > 0.9 and same[bar] < 0.5  # one bar on: the mirror, far from the pose itself
+    assert same[2 * bar] > 0.9 and mirrored[2 * bar] < 0.5  # two bars on: the pose itself
