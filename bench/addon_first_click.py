@@ -7,9 +7,10 @@ Builds the zips as `python build_addon.py` does (or reads them from --dist) and 
 what Blender unpacks and keeps (the add-on and every wheel) and what it installs from the wheels for each
 Python, unpacked. Then, for each interpreter given (a venv with bpy), installs the linux-x64 zip into a fresh bpy
 (only bpy and what bpy requires; Blender's user folders, HOME and the caches in a scratch folder), enables it and
-times the first Generate Dance of a 12-s sound strip of the example song, twice from scratch: clicked at once
-(the warm-up thread the add-on starts when enabled still running) and clicked once the warm-up has finished.
-The installed size there is measured on disk. Prints JSON.
+times the first Generate Dance of a 12-s sound strip of the example song from scratch: clicked at once (the
+warm-up thread the add-on starts when enabled still running) and clicked once the warm-up has finished, each
+onto a new rig and onto a Rigify rig generated from the human metarig (its controls keyed, `rigcontrols`; the
+rig is made before the clock starts). The installed size there is measured on disk. Prints JSON.
 """
 
 from __future__ import annotations
@@ -32,12 +33,22 @@ SONG = REPO / "examples" / "example_song.ogg"
 STRIP_S = 12
 MB = 1e6
 
-# Run as `python -I -S -c CHILD FRESH_BPY ZIP SONG WAIT` in a scratch HOME; prints one JSON line.
+# Run as `python -I -S -c CHILD FRESH_BPY ZIP SONG WAIT RIG` in a scratch HOME; prints one JSON line. RIG: "new"
+# (Generate Dance builds our rig) or "rigify" (onto a Rigify rig made from the human metarig first).
 CHILD = """
 import json, os, sys, threading, time
 sys.path.insert(0, sys.argv[1])  # the fresh bpy: -I -S, so nothing else is importable
-zip_path, song, wait = sys.argv[2], sys.argv[3], sys.argv[4] == "1"
+zip_path, song, wait, rig = sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5]
 import bpy
+if rig == "rigify":
+    import addon_utils  # Blender's, on the path once bpy is imported
+
+    addon_utils.enable("rigify", default_set=True)
+    bpy.ops.object.armature_human_metarig_add()
+    metarig = bpy.context.object
+    bpy.ops.pose.rigify_generate()
+    target = bpy.context.object
+    bpy.data.objects.remove(metarig)
 t = time.perf_counter()
 assert bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
                                                 enable_on_install=True) == {"FINISHED"}
@@ -52,6 +63,8 @@ strip = scene.sequence_editor.strips.new_sound("song", song, 2, 1)
 strip.frame_final_duration = STRIP_S * scene.render.fps
 scene.sequence_editor.active_strip = strip
 scene.dancenet.music_source = "STRIP"
+if rig == "rigify":
+    scene.dancenet.target, scene.dancenet.armature = "EXISTING", target
 click = time.perf_counter()
 result = bpy.ops.dancenet.generate()
 first = time.perf_counter() - click
@@ -59,7 +72,8 @@ warm_alive_after = warm.is_alive()
 warm.join()
 print(json.dumps({"bpy": bpy.app.version_string, "result": sorted(result), "install_and_enable_s": enabled - t,
                   "waited_for_warm_up_s": warm_s if wait else None, "first_generate_s": first,
-                  "warm_up_still_running_after_click": warm_alive_after}))
+                  "warm_up_still_running_after_click": warm_alive_after}), flush=True)
+os._exit(0)  # a Rigify rig's UI script keeps bpy alive, and bpy 4.5's exit then waits for ever on its audio thread
 """.replace("STRIP_S", str(STRIP_S))
 
 
@@ -126,14 +140,16 @@ def first_clicks(archive: Path) -> dict:
     out: dict = {"python": platform.python_version()}
     with tempfile.TemporaryDirectory(prefix="dancenet-first-click-") as tmp:
         fresh = _build_addon().fresh_bpy(Path(tmp) / "fresh")
-        for case, wait in (("clicked_at_once", "0"), ("clicked_after_warm_up", "1")):
+        cases = (("clicked_at_once", "0", "new"), ("clicked_after_warm_up", "1", "new"),
+                 ("rigify_clicked_at_once", "0", "rigify"), ("rigify_clicked_after_warm_up", "1", "rigify"))
+        for case, wait, rig in cases:
             scratch = Path(tmp) / case
             user = scratch / "blender"
             env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_USER_", "DANCENET_", "NUMBA_"))}
             env |= {"HOME": str(scratch / "home"), "BLENDER_USER_RESOURCES": str(user)}
             (scratch / "home").mkdir(parents=True)
-            run = subprocess.run([sys.executable, "-I", "-S", "-c", CHILD, str(fresh), str(archive), str(SONG), wait],
-                                 cwd=scratch, env=env, capture_output=True, text=True, timeout=900)  # fmt: skip
+            run = subprocess.run([sys.executable, "-I", "-S", "-c", CHILD, str(fresh), str(archive), str(SONG), wait,
+                                  rig], cwd=scratch, env=env, capture_output=True, text=True, timeout=900)  # fmt: skip
             if run.returncode:
                 raise SystemExit(f"{case}: {run.stderr.strip().splitlines()[-1:]}")
             line = next(x for x in run.stdout.splitlines() if x.startswith("{"))
