@@ -100,7 +100,7 @@ def summary(library: Any, what: str = "file") -> str:
     if library.notes:
         left = f"{len(library.notes)} {what}{'s' if len(library.notes) > 1 else ''}"
         line += f"; left out {left}: {library.notes[0].removeprefix('left out ')}"
-    return line
+    return song.readable(line)
 
 
 def _noted(name: str, sample: Callable[[], Any]) -> Any:

@@ -27,14 +27,19 @@ def strips_of(scene: bpy.types.Scene) -> bpy.types.bpy_prop_collection:
     return editor.strips if hasattr(editor, "strips") else editor.sequences
 
 
+def readable(text: str) -> str:
+    """`text` (a file's name or a line naming one) with each byte that is not UTF-8, kept by Python as a lone
+    surrogate, as U+FFFD: Blender's strings, names and reports take UTF-8 only."""
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
 def check_song(path: str | Path) -> Path:
     """An existing, readable audio file, or a DanceNetError saying what is wrong with it."""
     if not str(path).strip():
         raise DanceNetError("No audio file chosen: pick a song file in the DanceNet panel")
     p = Path(bpy.path.abspath(str(path))).expanduser()
-    shown = str(p).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-    if shown != str(p):  # bytes that are not UTF-8, kept by Python as lone surrogates, which Blender refuses
-        raise DanceNetError(f"Blender takes only UTF-8 file names: rename '{Path(shown).name}' (or its folder) "
+    if readable(str(p)) != str(p):
+        raise DanceNetError(f"Blender takes only UTF-8 file names: rename '{readable(p.name)}' (or its folder) "
                             "and pick it again")
     if p.is_dir():
         raise DanceNetError(f"{p} is a folder, not an audio file: give the path of a song file")

@@ -5,6 +5,7 @@ builds a folder in Blender (no torch)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -300,3 +301,18 @@ def test_no_build_button_for_the_shipped_library(scene, addon):
     scene.dancenet.library = ""
     with pytest.raises(RuntimeError, match="Choose the Library folder of BVH clips to build"):
         bpy.ops.dancenet.build_library()
+
+
+def test_a_clip_whose_name_is_not_utf8_is_reported_as_blender_can_show_it(scene, addon, own_cache, tmp_path):
+    """A Latin-1 `caf\\xe9.bvh` in the folder (from an old archive): the library builds, and the line about the
+    clip it leaves out shows the byte that is not UTF-8 as U+FFFD (Blender's text takes UTF-8 only)."""
+    folder = _two_clips(tmp_path / "clips")
+    (folder / os.fsdecode(b"caf\xe9.bvh")).write_text("not a clip")
+    scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
+    op = modal_stand_in(addon.operators.DANCENET_OT_build_library)
+    op._begin(bpy.context, addon.library.build_job(scene.dancenet))
+    op._job.join(120)
+    assert op.modal(bpy.context, SimpleNamespace(type="TIMER")) == {"FINISHED"}
+    ((kind, line),) = op.reports
+    assert kind == {"INFO"} and "left out 2 files: " in line and f"{folder}/caf\ufffd.bvh:1:" in line
+    line.encode("utf-8")  # no lone surrogate left: Blender's report would refuse it
