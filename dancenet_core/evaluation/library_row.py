@@ -32,7 +32,7 @@ from ..data.build import PairedSequence
 from ..data.dance_with_melody import read_manifest
 from ..library.analysis import UNSURE, analyze_clip
 from ..library.build import build_library
-from ..library.choreography import LONG_RUN_BARS, choreograph
+from ..library.choreography import DEFAULT_SETTINGS, LONG_RUN_BARS, Settings, choreograph
 from ..library.match import MatchModel
 from ..library.store import MotionLibrary
 from ..library.transitions import cut_window
@@ -70,7 +70,7 @@ def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -
 
 
 def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int,
-                hide_styles: bool = False, match: MatchModel | None = None
+                hide_styles: bool = False, match: MatchModel | None = None, settings: Settings = DEFAULT_SETTINGS
                 ) -> tuple[list, list[str], list[np.ndarray], dict]:
     """Dances from `library` (take k with seed k) to every test sequence's song span, their styles and beats (dance
     time), and the engine's own figures: per dance and over all. `hide_styles`: the library's clips danced without
@@ -87,7 +87,8 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
         music = analyze_music(seqs[p.seq].audio)
         start = seqs[p.seq].music_offset_s
         for take in range(takes):
-            d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style, match=match)[0]
+            d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style, match=match,
+                            settings=settings)[0]
             pos = d.motion.positions()[:, :BODY_JOINTS]
             step = (np.linalg.norm(np.diff(pos, axis=0), axis=-1) / p99).max(axis=1)
             near = np.zeros(len(step), bool)

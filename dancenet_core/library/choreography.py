@@ -32,6 +32,7 @@ from ..errors import DanceNetError
 from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
+from ..music.form import SongForm, song_form
 from .analysis import POSE_DIM, frame_features
 from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
@@ -54,6 +55,7 @@ CALM_SHARE = 0.25
 LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
 DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
+PHRASE_TOLERANCE_S = 0.1  # a grid bar and a bar of the song's form that start this close are one bar
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,11 @@ class Settings:
     # figure's clip's style below its most probable style's (docs/matching.md).
     match: float = 0.0
     match_style: float = 20.0
+    # The song's form (`music.form`): a cut on a bar that begins no phrase costs this much more, and a bar's music
+    # energy is this share its section's mean onset strength (the rest its own), so that a section's figures
+    # follow the section's loudness.
+    off_phrase: float = 0.0
+    section_energy: float = 0.0
 
 
 DEFAULT_SETTINGS = Settings()
@@ -243,7 +250,8 @@ class _Bars:
     a figure on a bar (`unary`) and of a cut between figures (`joins`)."""
 
     def __init__(self, library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
-                 style: str | None, settings: Settings, match: FigureMatch | None) -> None:
+                 style: str | None, settings: Settings, match: FigureMatch | None,
+                 form: SongForm | None = None) -> None:
         self.library, self.grid, self.rng, self.settings, self.match = library, grid, rng, settings, match
         starts, ratios = self.starts, self.ratios = figure_states(library, grid, style)
         self.nb = nb = len(library.beats)
@@ -261,7 +269,14 @@ class _Bars:
         self.ustarts, self.start_of = np.unique(starts, return_inverse=True)
         bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
         frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
-        self.music_rank = _ranks(np.array([onset[a : max(a + 1, b)].mean() for a, b in frames]))
+        loud = np.array([onset[a : max(a + 1, b)].mean() for a, b in frames])
+        bar_starts = np.array([t0 for t0, _t1 in bar_times])
+        phrase, section = _form_bars(form, bar_starts)
+        if settings.section_energy:
+            means = np.array([loud[section == k].mean() for k in section])
+            loud = (1 - settings.section_energy) * loud + settings.section_energy * means
+        self.music_rank = _ranks(loud)
+        self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
         self.entry = entry_steps(library, starts)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
         self.cache: dict[int, tuple] = {}
@@ -321,14 +336,26 @@ class _Bars:
         return cost
 
 
+def _form_bars(form: SongForm | None, bar_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per bar of the grid (by its start time): whether a phrase of the song's form begins on it, and the index
+    of the section it lies in (all bars phrase starts of one section without a form)."""
+    if form is None:
+        return np.ones(len(bar_starts), bool), np.zeros(len(bar_starts), np.int64)
+    phrase_s = form.bar_starts[[p.first_bar for p in form.phrases]]
+    near = np.abs(bar_starts[:, None] - phrase_s[None, :]).min(axis=1) < PHRASE_TOLERANCE_S
+    section_s = np.array([s.start_s for s in form.sections])
+    return near, np.maximum(np.searchsorted(section_s, bar_starts + PHRASE_TOLERANCE_S, side="right") - 1, 0)
+
+
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
-         previous: np.ndarray | None = None, match: FigureMatch | None = None) -> list[tuple[int, float]]:
+         previous: np.ndarray | None = None, match: FigureMatch | None = None,
+         form: SongForm | None = None) -> list[tuple[int, float]]:
     """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
     dance's last frame), joined to as a figure's end is."""
-    bars = _Bars(library, grid, onset, rng, style, settings, match)
+    bars = _Bars(library, grid, onset, rng, style, settings, match, form)
     cost = bars.first(previous)
     if not np.isfinite(cost).any():
         raise bars.too_short
@@ -342,7 +369,7 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
         total = cut_cost + ending.astype(np.float32)[None, :]
         came = np.argmin(total, axis=1)
         u, speed = bars.unary(b)
-        by_cut = total[np.arange(len(bars.ustarts)), came][bars.start_of] + bars.calm(speed)
+        by_cut = total[np.arange(len(bars.ustarts)), came][bars.start_of] + bars.calm(speed) + bars.off_phrase[b]
         by_carry = np.where(carries >= 0, ending[np.maximum(carries, 0)], np.inf)
         carry = by_carry <= by_cut
         back[b] = np.where(carry, best[np.maximum(carries, 0)], best[came[bars.start_of]])
@@ -369,9 +396,10 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     bar_beats = [grid.beats[a : a + n + 1] for a, n in grid.bars]
     fit = None if match is None else FigureMatch(match, library, analysis.features, bar_beats)
     previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
+    form = song_form(analysis) if settings.off_phrase or settings.section_energy else None
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous, fit)
+        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
