@@ -146,5 +146,5 @@ def test_a_failed_training_stops_the_others_and_closes_their_logs(tmp_path: Path
     if alive:  # end it, so a failure here leaves nothing running
         os.kill(slow, signal.SIGKILL)
     assert not alive
-    open_logs = [p for p in Path("/proc/self/fd").iterdir() if os.path.realpath(p).endswith(".log")]
+    open_logs = [p for p in Path("/proc/self/fd").iterdir() if os.path.realpath(p).startswith(str(tmp_path))]
     assert open_logs == []
