@@ -429,7 +429,7 @@ def _run_local(todo: list, task: SongTask, out: Path, jobs: int,
                ended: Callable[[int, dict[str, Any]], None]) -> None:
     """Up to `jobs` worker processes (spawned: the same start on every platform, and Blender's `bpy`, which
     `--fbx` loads, is not safe to fork), each given one song at a time; one that dies is replaced and its song
-    reported. However this ends (Ctrl-C, SIGTERM), the workers are stopped: each removes its unfinished files."""
+    reported. However this ends (Ctrl-C, SIGTERM), the workers are stopped and their unfinished files removed."""
     context = mp.get_context("spawn")
     queue = deque(todo)
     busy: dict[Connection, tuple[mp.process.BaseProcess, tuple | None]] = {}
@@ -475,19 +475,20 @@ def _run_local(todo: list, task: SongTask, out: Path, jobs: int,
                 ended(i, row)
                 give(conn, process)
     finally:
-        _stop([p for p, _item in busy.values()])
+        _stop(out, list(busy.values()))
 
 
-def _stop(processes: list[mp.process.BaseProcess]) -> None:
-    """SIGTERM (each worker then removes its unfinished files), then SIGKILL for any still there after 10 s."""
-    for p in processes:
-        p.terminate()
-    deadline = time.monotonic() + 10
-    for p in processes:
-        p.join(max(0.0, deadline - time.monotonic()))
-        if p.is_alive():
-            p.kill()
-            p.join()
+def _stop(out: Path, busy: list[tuple[mp.process.BaseProcess, tuple]]) -> None:
+    """Stop the workers still dancing (Ctrl-C, SIGTERM, an error here) at once, and remove their unfinished
+    files: each temporary name says its process, now gone (`atomic.remove_leftovers`). Killed, not asked: a
+    signal that Python turns into an exception can land where it is lost (a C library's callback), and the
+    files are removed here either way."""
+    for process, _item in busy:
+        process.kill()
+    for process, (_i, song, _rid) in busy:
+        process.join()
+        remove_leftovers(out / song.folder)
+    remove_leftovers(out / RECORDS)
 
 
 def _death(exitcode: int | None) -> str:
@@ -499,17 +500,21 @@ def _death(exitcode: int | None) -> str:
 
 
 def _worker(conn: Connection, parent: int, task: SongTask, out: str) -> None:
-    """A worker process: songs from `conn` until None, one row back for each. It ends with the batch, and a
-    SIGTERM or Ctrl-C unwinds it (its unfinished files removed) without a traceback."""
+    """A worker process: songs from `conn` until None, one row back for each. It ends with the batch; the batch
+    stops it (`_stop`)."""
     end_with_parent(parent)
-    signal.signal(signal.SIGTERM, lambda signum, _frame: sys.exit(128 + signum))
-    # Songs run side by side, each on one core: the music analysis of each in this process alone.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the batch's to answer (`_stop`)
+    # Songs run side by side, each on one core, as a Ray task is given one: the music analysis of each in this
+    # process alone, and BLAS on one thread for what runs outside `one_blas_thread` too (writing the files).
     os.environ["DANCENET_WORKERS"] = "1"
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")
     try:
         while (item := conn.recv()) is not None:
             i, song, rid = item
             conn.send((i, dance_song(task, song, Path(out), rid)))
-    except (KeyboardInterrupt, SystemExit, EOFError, BrokenPipeError):
+    except (EOFError, BrokenPipeError):  # the batch is gone
         pass
 
 

@@ -215,7 +215,7 @@ def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: P
     assert workers and not any(Path(f"/proc/{pid}").exists() for pid in workers)
     assert "Traceback" not in stderr
     done = {n for n, s in _status(out).items() if s == "done"}
-    assert done and not any(TEMP_MARK in p.name for p in out.rglob("*"))
+    assert done and [p for p in out.rglob("*") if TEMP_MARK in p.name] == []
     rerun = subprocess.run(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), capture_output=True, text=True,
                            timeout=120)
     assert rerun.returncode == 1, rerun.stderr
