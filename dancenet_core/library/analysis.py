@@ -67,6 +67,11 @@ LAG_WEIGHTS = {"dips": ((1, 0.2), (2, 0.2)), "feet": ((1, 0.3), (2, 0.3), (3, -0
                "height": ((1, 0.05), (3, -0.1))}
 BAR_LAG_WEIGHTS = {"feet": 0.05}  # the feet's speed after one bar of the meter read
 PRIOR_BPM, PRIOR_WEIGHT = 110.0, 0.3  # a slight preference for tempi near 110 BPM, between equal readings
+# The pelvis's rise and fall once a bar (its height's autocorrelation after a bar less after half a bar) beyond
+# which a reading is taken at half its tempo: 0.72-1.47 for the 31 waltzes read at twice their songs' tempo, at most
+# 0.67 for the 4/4 dances (0 for a body that bobs once a beat); chosen on the training split, used for the octave
+# only (the plan lays either octave at the dancers' speed).
+RISE_FALL = 0.7
 HEIGHT_TREND_S = 2.0  # the pelvis's slow drift (a capture's floor creeping up, a dip): removed from its height
 CANDIDATES = 600  # beat periods tried, evenly in log tempo between MIN_BPM and MAX_BPM
 UNSURE = 0.25  # a confidence under this: `library build` names the clip (give its tempo and meter in the manifest)
@@ -229,6 +234,19 @@ def choose_tempo(periods: np.ndarray, scores: dict[int, np.ndarray], meter: int 
     return float(periods[k]), m, confidence
 
 
+def bar_octave(period: float, meter: int, height: np.ndarray, fps: float) -> float:
+    """`period`, or twice it where the pelvis rises and falls once a bar at twice it (`RISE_FALL`: its height's
+    autocorrelation after that bar less after half of it), as a waltz's does: the two octaves score alike (the
+    plan lays either at the dancers' speed), but at the faster one a bar is half the dancers' bar, and figures
+    would start mid-bar."""
+    slower = 2.0 * period
+    if fps * 60.0 / slower < MIN_BPM or meter * slower >= len(height):
+        return period
+    ac = _autocorrelation(height, int(np.ceil(meter * slower)) + 1)
+    rise = np.nan_to_num(_lagged(ac, np.array([meter * slower, meter * period])))
+    return slower if rise[0] - rise[1] > RISE_FALL else period
+
+
 def _margin(top: float, rival: float) -> float:
     """How much better `top` is than `rival`, as a confidence: 0 (as good) to 1 (twice as good or more)."""
     if not np.isfinite(rival) or rival <= 0:
@@ -307,6 +325,7 @@ def analyze_clip(motion: Motion, style: str = "", beat_times: np.ndarray | None 
         else:
             periods, scores = tempo_scores(feats[:, :POSE_DIM], signals, motion.fps)
             period, told, confidence = choose_tempo(periods, scores, told)
+            period = bar_octave(period, told, signals["height"], motion.fps)
         beats = refine(v, track_beats(dips, period))
         source = _source(bpm, meter, style)
         meter = int(told)

@@ -22,7 +22,7 @@ from ..motion import Motion
 from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis
 
-LIBRARY_VERSION = "motion-library-4"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-5"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).

@@ -13,7 +13,7 @@ from test_library import song
 from dancenet_core.bvh import write_bvh
 from dancenet_core.cli import main
 from dancenet_core.evaluation.metrics import mean_joint_speed
-from dancenet_core.library.analysis import POSE_DIM, analyze_clip, frame_features, pose_return
+from dancenet_core.library.analysis import POSE_DIM, analyze_clip, bar_octave, frame_features, pose_return
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import WARP_RANGE, choreograph
 from dancenet_core.library.store import MotionLibrary
@@ -124,3 +124,16 @@ def test_a_dancer_in_the_mirror_of_the_pose_one_bar_on_comes_back_as_the_mirror(
     same, mirrored = pose_return(pose, 3 * bar)
     assert mirrored[bar] > 0.9 and same[bar] < 0.5  # one bar on: the mirror, far from the pose itself
     assert same[2 * bar] > 0.9 and mirrored[2 * bar] < 0.5  # two bars on: the pose itself
+
+
+def test_a_body_that_rises_and_falls_once_a_bar_is_read_at_its_bars_speed() -> None:
+    """A waltz's rise and fall spans its bar: a reading at twice its tempo (as good to the plan, but with bars half
+    the dancers') is halved, one at its tempo kept; a body that bobs once a beat keeps a reading at that beat (not
+    halved to a bar of six beats)."""
+    t = np.arange(int(40 * FPS)) / FPS
+    beat = FPS * 60.0 / 90.0  # frames
+    waltz = 0.9 - 0.05 * np.cos(2 * np.pi * t * 90.0 / 60.0 / 3)  # once a bar of three beats at 90 BPM
+    assert bar_octave(beat / 2, 3, waltz - waltz.mean(), FPS) == pytest.approx(beat)
+    assert bar_octave(beat, 3, waltz - waltz.mean(), FPS) == pytest.approx(beat)
+    bob = 0.9 - 0.03 * np.cos(2 * np.pi * t * 90.0 / 60.0)  # once a beat
+    assert bar_octave(beat, 3, bob - bob.mean(), FPS) == pytest.approx(beat)
