@@ -18,6 +18,9 @@ A clip from a capture session or a download has no music, so its tempo and bars 
   3/4; cha-cha, rumba, tango, salsa, swing 4/4...) or the user gave the tempo or meter (`manifest.csv`, an
   action's custom properties in Blender), which are taken as given. The weights were chosen on the training
   split's dances, with made-up stepping figures at 60-120 steps a minute in 3/4 and 4/4 read right.
+- Octave: where the pelvis rises and falls once a bar at half the tempo read (`bar_octave`: a waltz's rise and
+  fall), the tempo is halved, so that a bar is the dancers' bar and not half of it; the plan would lay either
+  octave at the dancers' speed, but figures start on bars.
 - Confidence: how much better that period scores than the best one that is neither it nor its half or double (an
   octave off is harmless: the plan lays a figure at 1, 2 or 1/2 clip beats per song beat, whichever plays it at
   its captured speed), and, where the meter was read from the motion, how much better it scores than the other.
