@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .floor import toe_ends
 from .motion import Motion
 from .music.form import SongForm
 from .representation import heading_frames
@@ -75,8 +76,8 @@ def _laid(motion: Motion, copy: Motion, offset: int, entry: int, leave: int, ble
     rots = np.concatenate([motion.rotations[:entry], placed.rotations[entry - offset:]])
     root = np.concatenate([motion.root_positions[:entry], placed.root_positions[entry - offset:]])
     n = min(blend, leave - entry)
-    _crossfade(rots, root, entry, motion.rotations[entry:entry + n], motion.root_positions[entry:entry + n],
-               rots[entry:entry + n].copy(), root[entry:entry + n].copy())
+    _crossfade(motion, rots, root, entry, (motion.rotations[entry:entry + n], motion.root_positions[entry:entry + n]),
+               (rots[entry:entry + n].copy(), root[entry:entry + n].copy()))
     head = Motion(rots, root, motion.fps, motion.skeleton)
     return carry_on(head, motion, leave)
 
@@ -92,8 +93,8 @@ def carry_on(head: Motion, dance: Motion, last: int) -> Motion:
     rots = np.concatenate([head.rotations[:last], rest.rotations[1:]])
     root = np.concatenate([head.root_positions[:last], rest.root_positions[1:]])
     n = min(int(round(JOIN_BLEND_S * dance.fps)), t - last, head.num_frames - last)
-    _crossfade(rots, root, last, head.rotations[last:last + n], head.root_positions[last:last + n],
-               rots[last:last + n].copy(), root[last:last + n].copy())
+    _crossfade(dance, rots, root, last, (head.rotations[last:last + n], head.root_positions[last:last + n]),
+               (rots[last:last + n].copy(), root[last:last + n].copy()))
     return Motion(rots, root, dance.fps, dance.skeleton)
 
 
@@ -105,9 +106,12 @@ def _extended(motion: Motion, frames: int) -> Motion:
                   motion.fps, motion.skeleton)
 
 
-def _crossfade(rots: np.ndarray, root: np.ndarray, at: int, a_rot: np.ndarray, a_root: np.ndarray,
-               b_rot: np.ndarray, b_root: np.ndarray) -> None:
-    """Frames from `at` on (as many as `a_rot` has) written as `a` turning into `b` (a smoothstep of weights)."""
+def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: tuple[np.ndarray, np.ndarray],
+               b: tuple[np.ndarray, np.ndarray]) -> None:
+    """Frames from `at` on (as many as `a`'s rotations have) written as `a` (rotations, root) turning into `b` (a
+    smoothstep of weights); the hips raised or lowered so that the lower toe is as high as the two dances'
+    weighted, so a foot on the floor in both stays on it through the blend (`motion`: the skeleton and rate)."""
+    (a_rot, a_root), (b_rot, b_root) = a, b
     n = len(a_rot)
     if n == 0:
         return
@@ -117,6 +121,12 @@ def _crossfade(rots: np.ndarray, root: np.ndarray, at: int, a_rot: np.ndarray, a
     qb = Rotation.from_rotvec(b_rot.reshape(-1, 3)).as_quat().reshape(n, -1, 4)
     rots[at:at + n] = _nlerp(qa, qb, w)
     root[at:at + n] = a_root * (1 - w) + b_root * w
+
+    def lowest(r: np.ndarray, p: np.ndarray) -> np.ndarray:
+        return toe_ends(Motion(r, p, motion.fps, motion.skeleton))[..., 1].min(axis=1)
+
+    want = lowest(a_rot, a_root) * (1 - w[:, 0]) + lowest(b_rot, b_root) * w[:, 0]
+    root[at:at + n, 1] += want - lowest(rots[at:at + n], root[at:at + n])
 
 
 def _nlerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
