@@ -1,6 +1,7 @@
 """`dancenet batch` throughput, printed as JSON: a catalog of songs made here (30 to 60 s each) danced from a cold
-music cache by one worker, by two (`--jobs 2`) and by a Ray cluster started on this machine with 2 CPUs
-(`--cluster ray --jobs 2`), each run a fresh command, as a user runs it (worker or Ray start-up included).
+music cache by one worker, by two (`--jobs 2`), by a Ray of 2 CPUs that the command starts and stops
+(`--cluster ray --jobs 2`) and by a running Ray cluster of this machine's 2 CPUs (`ray start --head --num-cpus=2`,
+then `--cluster ray --address auto`), each run a fresh command, as a user runs it (start-up included).
 Gives songs per minute, the ratios (jobs 2 over jobs 1, Ray over jobs 2: of the best runs, and round by round,
 as this machine is shared), each worker's peak resident memory (from batch.json), whether the three runs wrote the same
 bytes, and what the shared machine gave at the time: the load average, and how much more work two busy processes
@@ -19,12 +20,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-RUNS = {"jobs_1": ["--jobs", "1"], "jobs_2": ["--jobs", "2"], "ray_2cpu": ["--cluster", "ray", "--jobs", "2"]}
+RUNS = {"jobs_1": ["--jobs", "1"], "jobs_2": ["--jobs", "2"], "ray_2cpu": ["--cluster", "ray", "--jobs", "2"],
+        "ray_cluster_2cpu": ["--cluster", "ray", "--address", "auto"]}
+RAY = Path(sys.executable).parent / "ray"
 
 
 def make_songs(folder: Path, count: int, seed: int = 0) -> list[float]:
@@ -82,6 +87,21 @@ def two_over_one() -> float:
     return round(rate(2) / rate(1), 3)
 
 
+@contextmanager
+def ray_cluster(up: bool) -> Iterator[None]:
+    """With `up`, a cluster as docs/catalog.md starts one, of this machine's 2 CPUs alone, running before the
+    command as a cluster's users find it (`ray_2cpu` starts and stops a Ray of its own inside the command)."""
+    if not up:
+        yield
+        return
+    subprocess.run([str(RAY), "start", "--head", "--num-cpus=2", "--include-dashboard=false",
+                    "--disable-usage-stats"], check=True, capture_output=True)
+    try:
+        yield
+    finally:
+        subprocess.run([str(RAY), "stop"], check=False, capture_output=True)
+
+
 def same_bytes(a: Path, b: Path) -> bool:
     """Every BVH and npz of run `a` equal, byte for byte, to run `b`'s."""
     files = sorted(p.relative_to(a) for p in a.rglob("*") if p.suffix in (".bvh", ".npz"))
@@ -106,11 +126,12 @@ def main() -> None:
         for r in range(args.repeats):
             machine.append(two_over_one())
             for name, flags in RUNS.items():
-                results[name].append(run(songs, scratch / f"{name}-{r}", flags, scratch))
+                with ray_cluster(name == "ray_cluster_2cpu"):
+                    results[name].append(run(songs, scratch / f"{name}-{r}", flags, scratch))
         machine.append(two_over_one())
         load_after = os.getloadavg()[0]
         best = {name: max(runs, key=lambda x: x["songs_per_minute"]) for name, runs in results.items()}
-        identical = all(same_bytes(scratch / "jobs_1-0", scratch / f"{name}-0") for name in ("jobs_2", "ray_2cpu"))
+        identical = all(same_bytes(scratch / "jobs_1-0", scratch / f"{name}-0") for name in list(RUNS)[1:])
     throughput = {name: b["songs_per_minute"] for name, b in best.items()}
     print(json.dumps({
         "command": "bench/batch.py " + " ".join(sys.argv[1:]),
@@ -121,10 +142,12 @@ def main() -> None:
         "song_seconds_range": [round(min(lengths), 1), round(max(lengths), 1)],
         "jobs_2_over_jobs_1": round(throughput["jobs_2"] / throughput["jobs_1"], 3),
         "ray_over_jobs_2": round(throughput["ray_2cpu"] / throughput["jobs_2"], 3),
+        "ray_cluster_over_jobs_2": round(throughput["ray_cluster_2cpu"] / throughput["jobs_2"], 3),
         "each_round": [{"jobs_2_over_jobs_1": round(j2["songs_per_minute"] / j1["songs_per_minute"], 3),
                         "ray_over_jobs_2": round(ray["songs_per_minute"] / j2["songs_per_minute"], 3),
+                        "ray_cluster_over_jobs_2": round(cluster["songs_per_minute"] / j2["songs_per_minute"], 3),
                         "two_busy_processes_over_one_before": before}
-                       for j1, j2, ray, before in zip(*results.values(), machine, strict=False)],
+                       for j1, j2, ray, cluster, before in zip(*results.values(), machine, strict=False)],
         "same_bytes_in_every_run": identical,
         "runs": best,
         "all_runs": results,

@@ -534,15 +534,20 @@ def _run_ray(todo: list, task: SongTask, out: Path, jobs: int, address: str | No
              ended: Callable[[int, dict[str, Any]], None]) -> None:
     """Each song a Ray task: the driver reads the song and sends its bytes, the task dances a copy on its node
     and sends the files back, and the driver writes them (the nodes need the package, not a shared folder).
-    Connects to `address` (or `$RAY_ADDRESS`), else starts Ray on this machine with `jobs` CPUs; a Ray session
-    already started in this process is used as it is."""
+    Connects to `address` (or `$RAY_ADDRESS`), else to a cluster running on this machine, else starts Ray here
+    with `jobs` CPUs; a Ray session already started in this process is used as it is."""
     ray = ray_module()
     started = not ray.is_initialized()
     if started:
         local = address is None and not os.environ.get("RAY_ADDRESS")
+        settings = {"address": address, "include_dashboard": False, "logging_level": "ERROR"}
         try:
-            ray.init(address=address, num_cpus=max(1, jobs) if local else None, include_dashboard=False,
-                     logging_level="ERROR", configure_logging=True)
+            try:
+                ray.init(**settings, num_cpus=max(1, jobs) if local else None)
+            except ValueError as e:  # a cluster `ray start` left running here, which Ray joins (its CPUs, not ours)
+                if not local or "existing cluster" not in str(e):
+                    raise
+                ray.init(**settings)
         except (ConnectionError, RuntimeError, ValueError) as e:
             where = address or os.environ.get("RAY_ADDRESS") or "this machine"
             raise DanceNetError(f"cannot start or reach Ray at {where}: {first_line(e)}; start the cluster with "
