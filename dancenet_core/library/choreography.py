@@ -311,9 +311,11 @@ class _Bars:
         with np.errstate(divide="ignore", invalid="ignore"):
             log_speed = np.log(clip_s / song_s)
         fits &= np.isfinite(log_speed)
+        excess = _speed_limit_excess(log_speed)
         cost = (settings.energy * (self.music_rank[b] - self.fig_energy) ** 2 + settings.tempo * log_speed**2
-                + settings.out_of_range * _speed_limit_excess(log_speed)
-                + self.rng.normal(0.0, settings.noise, len(starts)))
+                + settings.out_of_range * excess + self.rng.normal(0.0, settings.noise, len(starts)))
+        if (fits & (excess == 0.0)).any():  # the speed limit holds wherever some figure keeps it
+            fits &= excess == 0.0
         if match is not None:
             cost = cost + settings.match_style * match.style_away(starts, ratios, n)
             if settings.match:
