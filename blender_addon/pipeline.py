@@ -149,15 +149,20 @@ def _actions_library(props: Any) -> Path:
     return built
 
 
-def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -> Plan:
-    """A Plan that keeps the rig's active take up to the current frame and dances the rest with a new seed."""
+def _active_take(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None,
+                 what: str) -> tuple[bpy.types.Action, dict, Path, float]:
+    """The rig's active take, its record, its song and the scene's frame rate, or a one-line error naming `what`
+    needs it."""
     action = rig_obj.animation_data.action if rig_obj is not None and rig_obj.animation_data else None
     info = takes.take_info(action)
     if info is None:
-        raise DanceNetError("Continue From Here needs a rig whose active action is a DanceNet take: "
-                            "generate a dance first")
-    path = song.check_song(info["song"])
-    fps = song.scene_fps(scene)
+        raise DanceNetError(f"{what} needs a rig whose active action is a DanceNet take: generate a dance first")
+    return action, info, song.check_song(info["song"]), song.scene_fps(scene)
+
+
+def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -> Plan:
+    """A Plan that keeps the rig's active take up to the current frame and dances the rest with a new seed."""
+    action, info, path, fps = _active_take(scene, rig_obj, "Continue From Here")
     first, last = (round(f) for f in action.frame_range)
     frame = scene.frame_current
     if not first + 2 <= frame <= last + 1 - fps:  # two kept frames give a velocity; a second left to dance
@@ -176,13 +181,7 @@ def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -
 def prepare_redo(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None, section: str) -> Plan:
     """A Plan that keeps the rig's active take and dances one section of its song anew (new seed; the section's
     own style and energy from the Sections panel), the take after it carried on: a new take beside the old."""
-    action = rig_obj.animation_data.action if rig_obj is not None and rig_obj.animation_data else None
-    info = takes.take_info(action)
-    if info is None:
-        raise DanceNetError("Dance Section Anew needs a rig whose active action is a DanceNet take: "
-                            "generate a dance first")
-    path = song.check_song(info["song"])
-    fps = song.scene_fps(scene)
+    action, info, path, fps = _active_take(scene, rig_obj, "Dance Section Anew")
     first = round(action.frame_range[0])
     analysis = scene.dancenet.analysis_for(str(path))
     found = next((s for s in (analysis or {}).get("sections", []) if s["name"] == section), None)

@@ -23,6 +23,7 @@ double (an octave off the plan dances at speed; anything else it cannot lay on t
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,8 @@ from ..library.choreography import DEFAULT_SETTINGS, LONG_RUN_BARS, Settings, ch
 from ..library.match import MatchModel
 from ..library.store import MotionLibrary
 from ..library.transitions import cut_window
-from ..music.features import analyze_music
+from ..motion import Motion
+from ..music.features import MusicAnalysis, analyze_music
 from ..representation import decode
 from ..skeleton import BODY_JOINTS, Skeleton
 from .style_share import hidden, own_style_seconds
@@ -47,15 +49,19 @@ TEMPO_TOLERANCE = 0.08
 def music_library(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton, fps: float) -> MotionLibrary:
     """The training dances (as the table's real rows decode them) cut on their songs' beats and downbeats: the
     engine's upper bound."""
+    return MotionLibrary.from_clips([
+        (p.seq, p.style, motion, analyze_clip(motion, p.style, music.beat_times - offset,
+                                              music.downbeat_times - offset))
+        for p, motion, music, offset in _with_songs(pairs, data_dir, skeleton, fps)])
+
+
+def _with_songs(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleton,
+                fps: float) -> Iterator[tuple[PairedSequence, Motion, MusicAnalysis, float]]:
+    """Each sequence, its dance decoded as the table's real rows decode it, its song's analysis and where in the
+    song the dance starts."""
     seqs = {s.seq: s for s in read_manifest(data_dir)}
-    clips = []
     for p in pairs:
-        motion = decode(p.motion, fps, skeleton)
-        music = analyze_music(seqs[p.seq].audio)
-        offset = seqs[p.seq].music_offset_s
-        clips.append((p.seq, p.style, motion, analyze_clip(motion, p.style, music.beat_times - offset,
-                                                             music.downbeat_times - offset)))
-    return MotionLibrary.from_clips(clips)
+        yield p, decode(p.motion, fps, skeleton), analyze_music(seqs[p.seq].audio), seqs[p.seq].music_offset_s
 
 
 def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -> MotionLibrary:
@@ -133,12 +139,8 @@ def clip_analysis(pairs: list[PairedSequence], data_dir: Path, skeleton: Skeleto
     """Every dance's tempo and meter read from its motion, without and with its style's meter, against its song's
     beats over the part danced (tempo: the median beat interval; meter: the median number of beats between
     downbeats): shares right over all and over the `test` split, and per clip."""
-    seqs = {s.seq: s for s in read_manifest(data_dir)}
     clips = []
-    for p in pairs:
-        motion = decode(p.motion, fps, skeleton)
-        music = analyze_music(seqs[p.seq].audio)
-        offset = seqs[p.seq].music_offset_s
+    for p, motion, music, offset in _with_songs(pairs, data_dir, skeleton, fps):
         beats = music.beat_times - offset
         span = (beats >= 0) & (beats <= motion.duration)
         song_bpm = 60.0 / float(np.median(np.diff(beats[span])))

@@ -15,15 +15,22 @@ FORM = SongForm(np.array([0.0, 0.5, 1.0, 1.5, 2.0]), (Phrase(0, None, 1.0), Phra
                 (Section("A", 1, 0.0, 1.0, 0, 2, 1.0), Section("A", 2, 1.0, 2.0, 2, 2, 0.9)))
 
 
-def test_sections_are_named_on_the_timeline_and_replaced_by_the_next_generate(scene, addon, song, monkeypatch):
+def reporting(**fields):
+    """The stand-in generator, its result also reporting `fields` (a form, the engine's details) as
+    generate_dance does."""
     fake = make_fake_generator()
 
-    def with_form(request, progress=None, should_cancel=None):
+    def generator(request, progress=None, should_cancel=None):
         result = fake(request, progress, should_cancel)
-        result.form = FORM
+        for name, value in fields.items():
+            setattr(result, name, value)
         return result
 
-    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: with_form)
+    return generator
+
+
+def test_sections_are_named_on_the_timeline_and_replaced_by_the_next_generate(scene, addon, song, monkeypatch):
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: reporting(form=FORM))
     scene.timeline_markers.new("A2", frame=40)  # the user's, named like ours
     assert generate(scene, song, seed=1) == {"FINISHED"}
     assert generate(scene, song, seed=2) == {"FINISHED"}
@@ -37,14 +44,7 @@ def test_section_settings_reach_the_next_generate_and_a_section_is_danced_anew(s
 
     from dancenet_core.request import SectionOverride
 
-    fake = make_fake_generator()
-
-    def with_form(request, progress=None, should_cancel=None):
-        result = fake(request, progress, should_cancel)
-        result.form = FORM
-        return result
-
-    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: with_form)
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: reporting(form=FORM))
     props = scene.dancenet
     assert not bpy.ops.dancenet.redo_section.poll()  # no take yet
     assert generate(scene, song, seed=3) == {"FINISHED"}
@@ -109,16 +109,9 @@ def _heads(scene, rig, frames) -> np.ndarray:
 
 
 def test_a_library_take_lists_its_figures(scene, addon, song, monkeypatch):
-    fake = make_fake_generator()
     figures = [{"clip": "salsa/01.bvh", "clip_s": [3.0, 5.0], "song_s": [0.0, 1.0], "ratio": 1.0},
                {"clip": "swing/07.bvh", "clip_s": [0.5, 2.5], "song_s": [1.0, 2.0], "ratio": 2.0}]
-
-    def with_figures(request, progress=None, should_cancel=None):
-        result = fake(request, progress, should_cancel)
-        result.details = [{"danced_figures": figures}]
-        return result
-
-    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: with_figures)
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: reporting(details=[{"danced_figures": figures}]))
     assert generate(scene, song, seed=3) == {"FINISHED"}
     shot = panel_screenshot()
     folds = {c.title: c for c in shot.record_panel(bpy.context, addon.panels.MAIN_PANELS[0]).children
