@@ -54,8 +54,7 @@ def make_songs(folder: Path, count: int, seed: int = 0) -> list[float]:
 
 def run(songs: Path, out: Path, flags: list[str], scratch: Path) -> dict:
     """One batch command from a cold music cache (numba's compiled code kept): its wall time and batch.json."""
-    env = os.environ | {"DANCENET_CACHE": str(scratch / f"cache-{out.name}")}
-    env.setdefault("NUMBA_CACHE_DIR", str(Path.home() / ".cache" / "dancenet" / "numba"))
+    env = os.environ | cache(scratch, out.name)
     t, before = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run([sys.executable, "-m", "dancenet_core.cli", "batch", str(songs), "-o", str(out), *flags],
                           cwd=REPO, env=env, capture_output=True, text=True)
@@ -87,15 +86,22 @@ def two_over_one() -> float:
     return round(rate(2) / rate(1), 3)
 
 
+def cache(scratch: Path, name: str) -> dict[str, str]:
+    """A run's own cold music cache (its nodes', for a cluster), numba's compiled code shared."""
+    return {"DANCENET_CACHE": str(scratch / f"cache-{name}"),
+            "NUMBA_CACHE_DIR": os.environ.get("NUMBA_CACHE_DIR", str(Path.home() / ".cache" / "dancenet" / "numba"))}
+
+
 @contextmanager
-def ray_cluster(up: bool) -> Iterator[None]:
+def ray_cluster(up: bool, env: dict[str, str]) -> Iterator[None]:
     """With `up`, a cluster as docs/catalog.md starts one, of this machine's 2 CPUs alone, running before the
-    command as a cluster's users find it (`ray_2cpu` starts and stops a Ray of its own inside the command)."""
+    command as a cluster's users find it, its workers with the run's cache (`ray_2cpu` starts and stops a Ray of
+    its own inside the command)."""
     if not up:
         yield
         return
     subprocess.run([str(RAY), "start", "--head", "--num-cpus=2", "--include-dashboard=false",
-                    "--disable-usage-stats"], check=True, capture_output=True)
+                    "--disable-usage-stats"], check=True, capture_output=True, env=os.environ | env)
     try:
         yield
     finally:
@@ -126,7 +132,7 @@ def main() -> None:
         for r in range(args.repeats):
             machine.append(two_over_one())
             for name, flags in RUNS.items():
-                with ray_cluster(name == "ray_cluster_2cpu"):
+                with ray_cluster(name == "ray_cluster_2cpu", cache(scratch, f"{name}-{r}")):
                     results[name].append(run(songs, scratch / f"{name}-{r}", flags, scratch))
         machine.append(two_over_one())
         load_after = os.getloadavg()[0]
