@@ -416,10 +416,12 @@ def _evaluate(rig: bpy.types.Object, scene: bpy.types.Scene, frames: np.ndarray,
     return out
 
 
-# Control-rig solve: passes (one evaluation of every frame each) until the deform bones turn within this of
-# where the dance wants them; a rig whose controls drive its bones rigidly converges in two or three.
+# Control-rig solve: passes (one evaluation of every frame each, the first one's of the rest pose only) until
+# the deform bones turn within this of where the dance wants them; a rig whose controls drive its bones rigidly,
+# whose carriers are found (`_carriers`), is done after one turn (Rigify's generated rig is).
 _SOLVE_PASSES = 6
 _SOLVE_TOLERANCE_DEG = 0.1
+_SOLVE_GAP = 1e-3  # and the hips within this share of their bone's length of where the dance puts them
 
 
 def _control_tracks(rig: bpy.types.Object, controls: rigcontrols.ControlRig, bases: dict[str, np.ndarray],
@@ -465,8 +467,9 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
     # (joint, control) pairs, outer controls first; a control's turn carries the controls hanging below it.
     pairs = sorted(((j, c) for j, cs in controls.controls.items() for c in cs),
                    key=lambda pair: len(data[pair[1]].parent_recursive))
+    above = _carriers(rig, controls, bone_map, measured)
+    pairs.sort(key=lambda pair: _carrier_depth(pair[1], above))
     keyed = {c for _, c in pairs}
-    above = {c: next((p.name for p in data[c].parent_recursive if p.name in keyed), None) for _, c in pairs}
 
     n = dance.num_frames
     frames = frame_start + np.arange(n)
@@ -476,14 +479,23 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
     frame_before = scene.frame_current
     action = None
     watched = sorted(keyed | set(measured.values()))
-    for _ in range(_SOLVE_PASSES):
+    carry = _floor_carry(rig, dance, controls)
+    hips = measured["pelvis"]
+    for solve_pass in range(_SOLVE_PASSES):
         if action is not None:
             bpy.data.actions.remove(action)
         action = write_action(rig, _control_tracks(rig, controls, bases, location, dance.floor_bone), name,
                               frame_start)
-        at = dict(zip(watched, _evaluate(rig, scene, frames, watched).swapaxes(0, 1), strict=True))
+        if solve_pass == 0:  # the rest pose on every frame, carried by the floor control where it is keyed
+            at_rest = _evaluate(rig, scene, frames[:1], watched)[0]
+            moved = np.broadcast_to(np.eye(4), (n, 4, 4)) if carry is None else carry @ np.linalg.inv(carry[0])
+            evaluated = moved[:, None] @ at_rest
+        else:
+            evaluated = _evaluate(rig, scene, frames, watched)
+        at = dict(zip(watched, evaluated.swapaxes(0, 1), strict=True))
         error = max(_miss(at[measured[j]], targets[j], j in controls.aimed).max() for j in controls.controls)
-        if error < np.radians(_SOLVE_TOLERANCE_DEG):
+        gap = np.linalg.norm(at[hips][:, :3, 3] - targets["pelvis"][:, :3, 3], axis=1).max()
+        if error < np.radians(_SOLVE_TOLERANCE_DEG) and gap < _SOLVE_GAP * data[hips].length:
             break
         _turn_controls(controls, pairs, above, at, measured, targets, bases, location)
     else:
@@ -510,28 +522,113 @@ def _control_targets(rig: bpy.types.Object, dance: PoseTracks, bone_map: dict[st
     to_armature = np.linalg.inv(np.array(rig.matrix_world))
     targets = {j: to_armature @ dance.world[bone_map[j]] @ np.linalg.inv(np.array(data[bone_map[j]].matrix_local))
                @ np.array(data[measured[j]].matrix_local) for j in controls.controls}
-    if dance.floor_bone is not None:
-        _, quats, locations = dance.floor_bone
-        rest = np.array(rig.data.bones[controls.floor].matrix_local)
-        carry = np.broadcast_to(np.eye(4), (dance.num_frames, 4, 4)).copy()
-        carry[:, :3, :3] = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()
-        carry[:, :3, 3] = locations
-        carry = rest @ carry @ np.linalg.inv(rest)
+    carry = _floor_carry(rig, dance, controls)
+    if carry is not None:
         targets = {j: carry @ m for j, m in targets.items()}
     return measured, targets
 
 
-def _turn_controls(controls: rigcontrols.ControlRig, pairs: list[tuple[str, str]], above: dict[str, str | None],
+def _floor_carry(rig: bpy.types.Object, dance: PoseTracks, controls: rigcontrols.ControlRig) -> np.ndarray | None:
+    """How the floor control's keys move the rig, armature-space rigid motions [T, 4, 4]; None if not keyed."""
+    if dance.floor_bone is None:
+        return None
+    _, quats, locations = dance.floor_bone
+    rest = np.array(rig.data.bones[controls.floor].matrix_local)
+    carry = np.broadcast_to(np.eye(4), (dance.num_frames, 4, 4)).copy()
+    carry[:, :3, :3] = Rotation.from_quat(quats[:, [1, 2, 3, 0]]).as_matrix()
+    carry[:, :3, 3] = locations
+    return rest @ carry @ np.linalg.inv(rest)
+
+
+# A control's carriers: the keyed controls whose turns turn it too, with the share of the turn each passes on
+# (None: the part no keyed control turns).
+Carriers = tuple[tuple[str | None, float], ...]
+
+
+def _carriers(rig: bpy.types.Object, controls: rigcontrols.ControlRig, bone_map: dict[str, str],
+              measured: dict[str, str]) -> dict[str, Carriers]:
+    """Control -> its carriers, which a pass of the solve counts on. Found up the control's parents, through the
+    bones whose rotation copies another bone's (Rigify's head copies the torso's, its neck half of it, a finger's
+    base hangs from the hand's deform bone): the first keyed control, or the deform or measured bone of a joint
+    (then that joint's innermost control). A wrong guess costs a pass, not the result: each pass measures
+    where Blender put the bones."""
+    keyed = {c for cs in controls.controls.values() for c in cs}
+    turned_by = {b: controls.controls[j][-1] for j in measured for b in (bone_map[j], measured[j])}
+    pose = rig.pose.bones
+
+    def source(name: str | None, seen: frozenset[str]) -> dict[str | None, float]:
+        if name is None or name in seen:
+            return {None: 1.0}
+        if name in keyed or name in turned_by:
+            return {name if name in keyed else turned_by[name]: 1.0}
+        # A part copied rotation blends by its influence; a copied transform is followed where it mostly wins.
+        copies = [con for con in pose[name].constraints
+                  if (con.type == "COPY_ROTATION" and con.influence > 0
+                      or con.type == "COPY_TRANSFORMS" and con.influence > 0.5)
+                  and not con.mute and con.target == rig and con.subtarget in pose]  # fmt: skip
+        parent = pose[name].parent.name if pose[name].parent is not None else None
+        if not copies:
+            return source(parent, seen | {name})
+        share = min(copies[-1].influence, 1.0) if copies[-1].type == "COPY_ROTATION" else 1.0
+        mixed: dict[str | None, float] = {}
+        for part, weight in ((copies[-1].subtarget, share), (parent, 1.0 - share)):
+            for carrier, w in (source(part, seen | {name}).items() if weight > 0 else ()):
+                mixed[carrier] = mixed.get(carrier, 0.0) + weight * w
+        return mixed
+
+    out = {}
+    for c in sorted(keyed):
+        parent = pose[c].parent
+        found = source(parent.name if parent is not None else None, frozenset({c}))
+        out[c] = tuple(sorted(found.items(), key=lambda item: -item[1]))
+
+    def loops(c: str, path: frozenset[str]) -> bool:
+        return any(up in path or loops(up, path | {up}) for up, _ in out[c] if up is not None)
+
+    for c in sorted(keyed):  # a loop of carriers is cut where it is found
+        if loops(c, frozenset({c})):
+            out[c] = ((None, 1.0),)
+    return out
+
+
+def _carrier_depth(control: str | None, above: dict[str, Carriers]) -> int:
+    """How many carriers deep a control hangs (a solve pass turns carriers first)."""
+    if control is None:
+        return -1
+    return 1 + max(_carrier_depth(up, above) for up, _ in above[control])
+
+
+def _carried(carriers: Carriers, turns: dict[str, np.ndarray], head: np.ndarray) -> np.ndarray:
+    """What the turns of a control's carriers do to it, a rigid motion [T, 4, 4]: their rotations blended by
+    their shares (slerp, as Blender blends a constraint by its influence), its head moved as the main carrier
+    moves it."""
+    moves = [turns[up] if up is not None else np.eye(4) for up, _ in carriers]
+    if len(carriers) == 1:
+        return moves[0]
+    turn, total = np.broadcast_to(rotation_part(moves[0]), (len(head), 3, 3)), carriers[0][1]
+    for move, (_, share) in zip(moves[1:], carriers[1:], strict=True):
+        total += share
+        step = Rotation.from_matrix(np.swapaxes(turn, 1, 2) @ rotation_part(move)).as_rotvec() * (share / total)
+        turn = turn @ Rotation.from_rotvec(step).as_matrix()
+    carried = np.broadcast_to(np.eye(4), (len(head), 4, 4)).copy()
+    carried[:, :3, :3] = turn
+    main = np.broadcast_to(moves[0], (len(head), 4, 4))
+    moved = np.einsum("tij,tj->ti", main[:, :3, :3], head) + main[:, :3, 3]
+    carried[:, :3, 3] = moved - np.einsum("tij,tj->ti", turn, head)
+    return carried
+
+
+def _turn_controls(controls: rigcontrols.ControlRig, pairs: list[tuple[str, str]], above: dict[str, Carriers],
                    at: dict[str, np.ndarray], measured: dict[str, str], targets: dict[str, np.ndarray],
                    bases: dict[str, np.ndarray], location: np.ndarray) -> None:
     """One pass of the solve: turn each control (its `bases`, and the pelvis' control's `location`, changed in
     place) by what its measured bone as Blender evaluated it (`at`) still lacks, outer controls first, a control
-    counting on the turn of the control above it."""
+    counting on the turns of its carriers."""
     mover = controls.controls["pelvis"][0]
     n = len(location)
     turns: dict[str, np.ndarray] = {}  # control -> what this pass does to it, a rigid motion [T, 4, 4]
     for j, c in pairs:
-        carried = turns[above[c]] if above[c] is not None else np.eye(4)
+        carried = _carried(above[c], turns, at[c][:, :3, 3])
         a_control, a_driven = carried @ at[c], carried @ at[measured[j]]  # after the controls above it turn
         if j in controls.aimed:
             turn = min_rotation(a_driven[:, :3, 1], targets[j][:, :3, 1])
@@ -542,11 +639,13 @@ def _turn_controls(controls: rigcontrols.ControlRig, pairs: list[tuple[str, str]
         move[:, :3, :3] = turn
         move[:, :3, 3] = head - np.einsum("tij,tj->ti", turn, head)
         if c == mover:
+            # The location is in the frame the bone has with no pose: its current frame turned back by its
+            # basis (the same before and after this turn).
+            unposed = bases[c] @ np.linalg.inv(a_control[:, :3, :3])
+        if j == "pelvis":  # the hips' place, after each of the pelvis' controls, made up by the mover's location
             shift = targets[j][:, :3, 3] - (move @ a_driven)[:, :3, 3]
             move[:, :3, 3] += shift
-            # The head moves by `shift` in armature space; the location is in the frame the bone has with no
-            # pose, which is its current frame turned back by its basis.
-            location += np.einsum("tij,tj->ti", bases[c] @ np.linalg.inv(a_control[:, :3, :3]), shift)
+            location += np.einsum("tij,tj->ti", unposed, shift)
         u = rotation_part(a_control)
         bases[c] = bases[c] @ np.swapaxes(u, 1, 2) @ turn @ u
         turns[c] = move @ carried
