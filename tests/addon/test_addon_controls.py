@@ -82,9 +82,11 @@ def keyed_bones(action) -> set[str]:
 
 def test_rigify_rig_dances_on_its_controls(scene, addon, song, rigify_rig, monkeypatch):
     rig = rigify_rig
+    from blender_addon import keyframes
+
     evaluated: list[int] = []  # frames per evaluation of the solve
-    evaluate = addon.keyframes._evaluate
-    monkeypatch.setattr(addon.keyframes, "_evaluate", lambda *a: evaluated.append(len(a[2])) or evaluate(*a))
+    evaluate = keyframes._evaluate
+    monkeypatch.setattr(keyframes, "_evaluate", lambda *a: evaluated.append(len(a[2])) or evaluate(*a))
     muted_before = {(pb.name, c.name) for pb in rig.pose.bones for c in pb.constraints if c.mute}
     scene.render.fps = 30  # the fake's own rate: frame f is the dance's frame f
     props = scene.dancenet
