@@ -18,7 +18,7 @@ import bpy
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import DanceRequest, SectionOverride
 
-from . import bonemap, library, markers, rig, rigchoice, rigcontrols, rollback, song, takes
+from . import bonemap, library, markers, rig, rigchoice, rigcontrols, rollback, song, takes, warming
 from .job import Generator, error_message
 from .panelsettings import AS_DANCE, panel_settings
 
@@ -205,9 +205,11 @@ def prepare_redo(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None, secti
 
 
 def generate_now(context: bpy.types.Context, plan: Plan, generator: Generator) -> Applied:
-    """Generate and apply on the calling thread: scripts, background mode, tests."""
+    """Generate and apply on the calling thread: scripts, background mode, tests (never beside a warm-up step:
+    `warming.LOCK`, as a worker's job)."""
     try:
-        result = generator(plan.request)
+        with warming.LOCK:
+            result = generator(plan.request)
     except DanceNetError:
         raise
     except Exception as e:

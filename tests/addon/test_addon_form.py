@@ -118,3 +118,33 @@ def test_a_library_take_lists_its_figures(scene, addon, song, monkeypatch):
              if getattr(c, "kind", "") == "panel"}
     drawn = [w.text for w in shot.walk(folds["Figures"]) if w.text]
     assert drawn == ["   0.0-1.0 s   salsa/01.bvh  3.0-5.0 s", "   1.0-2.0 s   swing/07.bvh  0.5-2.5 s"], drawn
+
+
+def test_a_generation_on_the_calling_thread_waits_for_the_warm_up_step(scene, addon, song):
+    """Scripts, background mode and batch generate on the calling thread: never beside a warm-up step (a
+    generation beside one once ended in a segmentation fault), as a worker's job never is."""
+    import threading
+
+    from dancenet_core.errors import DanceNetError
+
+    started = threading.Event()
+
+    def generator(request, progress=None, should_cancel=None):
+        started.set()
+        raise DanceNetError("stopped here: nothing is applied off the main thread")
+
+    def generate() -> None:
+        with pytest.raises(DanceNetError, match="stopped here"):
+            addon.pipeline.generate_now(bpy.context, plan, generator)
+
+    scene.dancenet.music_source, scene.dancenet.music_file = "FILE", str(song)
+    plan = addon.pipeline.prepare(scene)
+    addon.warming.LOCK.acquire()  # a warm-up step under way
+    try:
+        worker = threading.Thread(target=generate)
+        worker.start()
+        assert not started.wait(0.5)  # waits for the step
+    finally:
+        addon.warming.LOCK.release()
+    worker.join(30)
+    assert started.is_set() and not worker.is_alive()
