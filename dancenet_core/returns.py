@@ -23,7 +23,6 @@ from .motion import Motion
 from .music.form import SongForm
 from .representation import heading_frames
 
-RETURN_MODES = ("repeat", "mirror", "anew")
 JOIN_SLACK_S = 0.25  # a join may move this far from the section's boundary, to where the two dances are most alike
 # How long a join's crossfade lasts: on the validation songs a 0.4-s join cost FID_k (40.8 against 35.8 danced
 # anew), 1.2 s costs about none (36.7; 2 s: 36.1) and keeps the return 0.09 alike (docs/form.md).
@@ -70,9 +69,7 @@ def _laid(motion: Motion, copy: Motion, offset: int, entry: int, leave: int, ble
     the dancer stands and faces just before `entry`, and the dance after `leave` carried on from the copy
     (`carry_on`). The entry crossfades over `blend` frames from the dance to the copy, as animation systems
     blend two clips: both keep moving as they move, so the join adds no motion of its own."""
-    t = motion.num_frames
-    placed = _placed(copy, motion[offset:offset + copy.num_frames] if offset + copy.num_frames <= t else
-                     _extended(motion[offset:], copy.num_frames), entry - 1 - offset)
+    placed = _placed(copy, entry - 1 - offset, motion[entry - 1:entry])
     rots = np.concatenate([motion.rotations[:entry], placed.rotations[entry - offset:]])
     root = np.concatenate([motion.root_positions[:entry], placed.root_positions[entry - offset:]])
     n = min(blend, leave - entry)
@@ -89,21 +86,13 @@ def carry_on(head: Motion, dance: Motion, last: int) -> Motion:
     t = dance.num_frames
     if last >= t:
         return head[:t]
-    rest = _placed(dance[last - 1:], head[last - 1:last + 1] if head.num_frames > last else head[last - 1:last], 0)
+    rest = _placed(dance[last - 1:], 0, head[last - 1:last])
     rots = np.concatenate([head.rotations[:last], rest.rotations[1:]])
     root = np.concatenate([head.root_positions[:last], rest.root_positions[1:]])
     n = min(int(round(JOIN_BLEND_S * dance.fps)), t - last, head.num_frames - last)
     _crossfade(dance, rots, root, last, (head.rotations[last:last + n], head.root_positions[last:last + n]),
                (rots[last:last + n].copy(), root[last:last + n].copy()))
     return Motion(rots, root, dance.fps, dance.skeleton)
-
-
-def _extended(motion: Motion, frames: int) -> Motion:
-    """`motion` held on its last frame up to `frames` frames (only its frames before the end are ever read)."""
-    pad = frames - motion.num_frames
-    return Motion(np.concatenate([motion.rotations, np.repeat(motion.rotations[-1:], pad, 0)]),
-                  np.concatenate([motion.root_positions, np.repeat(motion.root_positions[-1:], pad, 0)]),
-                  motion.fps, motion.skeleton)
 
 
 def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: tuple[np.ndarray, np.ndarray],
@@ -193,13 +182,13 @@ def _heading(motion: Motion, k: int) -> float:
     return float(heading_frames(motion[k:k + 1])[0])
 
 
-def _placed(piece: Motion, at: Motion, k: int) -> Motion:
-    """`piece` turned about the vertical and moved across the floor so that its frame k stands where `at`'s
-    frame k stands and faces where it faces (its height and its pose untouched)."""
-    yaw = _heading(at, k) - _heading(piece, k)
+def _placed(piece: Motion, k: int, at: Motion) -> Motion:
+    """`piece` turned about the vertical and moved across the floor so that its frame k stands where `at` (one
+    frame) stands and faces where it faces (its height and its pose untouched)."""
+    yaw = _heading(at, 0) - _heading(piece, k)
     turn = Rotation.from_euler("y", yaw)
     root = piece.root_positions - piece.root_positions[k] * np.array([1.0, 0.0, 1.0])
-    root = turn.apply(root) + at.root_positions[k] * np.array([1.0, 0.0, 1.0])
+    root = turn.apply(root) + at.root_positions[0] * np.array([1.0, 0.0, 1.0])
     rots = piece.rotations.copy()
     rots[:, 0] = (turn * Rotation.from_rotvec(rots[:, 0])).as_rotvec()
     return Motion(rots, root, piece.fps, piece.skeleton)
