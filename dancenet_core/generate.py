@@ -115,16 +115,22 @@ def section_named(form: SongForm, name: str, part: tuple[float, float]) -> Secti
     return found
 
 
-def _dance_section(engine: Engine, analysis: MusicAnalysis, request: DanceRequest, dance: Motion, section: Section,
-                   part: tuple[float, float], report: StageProgress, cancelled: Callable[[], bool]) -> Takes:
-    """One take of `request` from the part's start to the end of `section`: `dance` kept before the section
-    (where there are frames enough to continue from), the section danced anew."""
+def _section_anew(engine: Engine, analysis: MusicAnalysis, request: DanceRequest, dance: Motion, section: Section,
+                  part: tuple[float, float], report: StageProgress, cancelled: Callable[[], bool]) -> Takes:
+    """One take: `dance` (of the part) with `section` danced anew by `request`, `dance` kept before the section
+    (where there are frames enough to continue from), the new dance run on past the section's end to crossfade
+    into the rest of `dance`, carried on from where it ends; its contacts those of the new frames."""
     start, end = part
     at_s = section.start_s - start
     kept = dict(continue_from=dance, at_s=at_s) if at_s * dance.fps > DIFFERENCES else {}
     sub = replace(request, takes=1, end_s=min(end, section.end_s + JOIN_BLEND_S), sections=(), returns="anew",
-                  redo_section=None, **kept)  # on past the section, to crossfade into the dance after it
-    return engine.dance(sub, analysis, report, cancelled)
+                  redo_section=None, **kept)
+    takes = engine.dance(sub, analysis, report, cancelled)
+    danced = takes.motions[0]
+    leave = min(round((section.end_s - start) * danced.fps), danced.num_frames)
+    takes.motions = [carry_on(danced, dance.resampled(danced.fps), leave)]
+    takes.contacts = [c[:leave] for c in takes.contacts]
+    return takes
 
 
 def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, request: DanceRequest,
@@ -133,10 +139,7 @@ def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, reque
     its end, then the kept dance carried on from where they end)."""
     assert request.redo_section is not None and request.continue_from is not None
     section = section_named(form, request.redo_section, part)
-    takes = _dance_section(engine, analysis, request, request.continue_from, section, part, report, cancelled)
-    kept = request.continue_from.resampled(takes.motions[0].fps)
-    leave = round((section.end_s - part[0]) * kept.fps)
-    takes.motions = [carry_on(m, kept, leave) for m in takes.motions]
+    takes = _section_anew(engine, analysis, request, request.continue_from, section, part, report, cancelled)
     takes.contacts = []  # the kept dance has none
     return takes
 
@@ -150,11 +153,11 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
         for k, motion in enumerate(takes.motions):
             sub = replace(request, style=o.style or request.style, energy=o.energy or request.energy,
                           seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
-            new = _dance_section(engine, analysis, sub, motion, section, part, report, cancelled)
-            leave = min(round((section.end_s - part[0]) * motion.fps), new.motions[0].num_frames)
-            takes.motions[k] = carry_on(new.motions[0], motion, leave)
+            new = _section_anew(engine, analysis, sub, motion, section, part, report, cancelled)
+            takes.motions[k] = new.motions[0]
             if k < len(takes.contacts) and new.contacts:
-                takes.contacts[k] = np.concatenate([new.contacts[0][:leave], takes.contacts[k][leave:]])
+                done = len(new.contacts[0])
+                takes.contacts[k] = np.concatenate([new.contacts[0], takes.contacts[k][done:]])
     return takes
 
 
