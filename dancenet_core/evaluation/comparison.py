@@ -137,7 +137,7 @@ def measure(rows: list[DanceSet], reference: dict, fps: float, style_net: Motion
         r["replay_m"] = float(np.median(nearest_segment_distance(segs, reference["library"])))
         r["segments"] = int(len(feats["hit"]))
         if forms and row.songs:
-            r["return_likeness"] = mean_likeness(row.dances, row.songs, forms)
+            r["return_likeness"] = mean_likeness(row.dances, positions, row.songs, forms)
         table[row.name] = r | {"label": row.label, **row.info}
     return table
 

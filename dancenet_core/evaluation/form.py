@@ -139,12 +139,14 @@ def song_forms(pairs: list, data_dir: Path) -> dict[str, tuple[SongForm, float]]
     return {p.seq: (song_form(analyze_music(seqs[p.seq].audio)), float(seqs[p.seq].music_offset_s)) for p in pairs}
 
 
-def mean_likeness(dances: list[Motion], songs: list[str], forms: dict[str, tuple[SongForm, float]]) -> float | None:
-    """The mean return likeness of the dances whose songs have returns within them (None: no such dance)."""
+def mean_likeness(dances: list[Motion], positions: list[np.ndarray], songs: list[str],
+                  forms: dict[str, tuple[SongForm, float]]) -> float | None:
+    """The mean return likeness of the dances (their joint positions already computed) whose songs have returns
+    within them (None: no such dance)."""
     from ..representation import heading_frames
 
-    values = [return_likeness(m.positions(), heading_frames(m), m.fps, *forms[seq])
-              for m, seq in zip(dances, songs, strict=True) if seq in forms]
+    values = [return_likeness(p, heading_frames(m), m.fps, *forms[seq])
+              for m, p, seq in zip(dances, positions, songs, strict=True) if seq in forms]
     values = [v for v in values if v is not None]
     return float(np.mean(values)) if values else None
 
