@@ -143,6 +143,9 @@ class DanceRequest:
     footfix: bool = _option(True, Option(
         "remove foot sliding and floor contact errors", bool, "--no-footfix",
         "Foot Clean-up"))
+    beat_lock: bool = _option(True, Option(
+        "lock the dance to the song's beats: its own beats moved onto them, no frame more than 15% faster or "
+        "slower than danced", bool, "--no-beat-lock", "Beat Lock"))
     start_s: float = _option(0.0, Option(
         "dance from this many seconds into the song (default: its beginning)", float, "--start",
         metavar="SECONDS"))

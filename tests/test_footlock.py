@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 
 from dancenet_core.floor import contact_floor, floor_shift, toe_ends
-from dancenet_core.footlock import contact_runs, hold_offsets, lock_feet, planted_feet
+from dancenet_core.footlock import GROUND_M, STILL_MPS, contact_runs, hold_offsets, lock_feet, planted_feet
 from dancenet_core.motion import Motion
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0
 
 
-def _gliding(frames: int = 100, lift: float = 0.0) -> Motion:
-    """A dancer with bent knees gliding forward at 0.5 m/s, swaying a little, its toes `lift` above the floor."""
+def _gliding(frames: int = 100, lift: float = 0.0, speed: float = 0.5) -> Motion:
+    """A dancer with bent knees gliding forward at `speed` m/s, swaying a little, its toes `lift` above the floor."""
     t = np.arange(frames) / FPS
     rot = np.zeros((frames, 55, 3))
     for side in ("left", "right"):
@@ -22,7 +22,7 @@ def _gliding(frames: int = 100, lift: float = 0.0) -> Motion:
         rot[:, JOINT_INDEX[f"{side}_knee"], 0] = 0.5
         rot[:, JOINT_INDEX[f"{side}_ankle"], 0] = -0.2
     rot[:, JOINT_INDEX["spine1"], 2] = 0.1 * np.sin(2 * np.pi * t)
-    root = np.stack([0.02 * np.sin(np.pi * t), np.full(frames, 0.9), 0.5 * t], -1)
+    root = np.stack([0.02 * np.sin(np.pi * t), np.full(frames, 0.9), speed * t], -1)
     m = Motion(rot, root, FPS, DEFAULT_SKELETON)
     low = m.end_effectors()[:, list(TOE_ENDS), 1].min()
     m.root_positions[:, 1] += lift - low
@@ -68,7 +68,8 @@ def test_a_planted_foot_stays_put_and_only_the_legs_move() -> None:
 
 
 def test_a_foot_left_still_on_the_floor_counts_as_planted() -> None:
-    m = _gliding(lift=0.0)  # the toes on the floor, gliding at 0.5 m/s: too fast to count
+    m = _gliding(lift=0.0, speed=1.0)  # the toes on the floor, gliding at 1 m/s: too fast to count
+    assert STILL_MPS < 1.0
     none = np.zeros((m.num_frames, 2))
     assert not planted_feet(m, none).any()
     m.root_positions[40:60, [0, 2]] = m.root_positions[40, [0, 2]]  # the body stops for 0.8 s
@@ -77,7 +78,7 @@ def test_a_foot_left_still_on_the_floor_counts_as_planted() -> None:
     predicted = none.copy()
     predicted[5:10, 1] = 1
     assert planted_feet(m, predicted)[5:10, 1].all()  # the model's contacts always count
-    assert not planted_feet(_gliding(lift=0.05), none).any()  # a still foot 5 cm up is not on the floor
+    assert not planted_feet(_gliding(lift=GROUND_M + 0.01, speed=0.0), none).any()  # still, but above the floor
 
 
 def test_the_floor_pass_stands_a_hovering_dance_on_its_planted_feet() -> None:

@@ -26,6 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a foot model's runtime weights (a run's footfix.npz) instead of the shipped one")
     p.add_argument("--cleanup", nargs="+", choices=[*CLEANUPS, "none"], default=[FOOT_CLEANUP],
                    help=f"foot clean-ups to compare (default: generation's, {FOOT_CLEANUP}; none: the floor only)")
+    p.add_argument("--beat-lock", nargs="+", choices=["on", "off"], default=["on"],
+                   help="with the beat lock (generation's default), without it, or both (on off)")
     p.add_argument("--curve", type=Path, default=None, metavar="RUN",
                    help="instead: the learning curve of a training run folder (its snapshots and log)")
     p.set_defaults(handler=comparison.validate)

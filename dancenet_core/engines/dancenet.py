@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from ..beatlock import lock_to_beats
 from ..constants import MIN_PART_S
 from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
@@ -86,6 +87,17 @@ def clean_feet(bundle: Bundle, feats: np.ndarray, cleanup: str | None = FOOT_CLE
         out[:, layout.rotations] = locked.rotations[:, 1:].reshape(len(out), -1)
         # A leg that cannot reach its held foot lifts it: stand the locked dance on the floor once more.
         out[:, 1] += floor_shift(locked, contacts)
+    return out
+
+
+def lock_beats(bundle: Bundle, feats: np.ndarray, beats_s: np.ndarray, keep: int = 0) -> np.ndarray:
+    """Unnormalised features [T, D] with the dance's beats moved onto the song's `beats_s` (seconds from its first
+    frame; `beatlock.py`), its first `keep` frames as they are: decoded, time-warped and encoded again, each frame's
+    predicted contacts those of its source frame. Before the foot clean-up, which holds the warped dance's feet."""
+    layout = FeatureLayout.for_skeleton(bundle.skeleton)
+    warped, src = lock_to_beats(decode(feats, bundle.model.cfg.fps, bundle.skeleton), beats_s, keep)
+    out = encode(warped).astype(feats.dtype)
+    out[:, layout.contacts] = feats[np.round(src).astype(int), layout.contacts]
     return out
 
 
@@ -198,6 +210,13 @@ class DanceNetEngine:
 
         layout = FeatureLayout.for_skeleton(bundle.skeleton)
         takes_feats = [scale_moves(f, layout, request.move_scale) for f in takes_feats]
+        t = time.perf_counter()
+        if request.beat_lock:
+            progress("locking to the beats", 0.0)
+            beats = analysis.beat_times - start
+            keep = 0 if prefix is None else prefix.shape[1]
+            takes_feats = [lock_beats(bundle, f, beats, keep) for f in takes_feats]
+        timings["beat_lock_s"] = time.perf_counter() - t
         t = time.perf_counter()
         progress("cleaning feet" if request.footfix else "placing on the floor", 0.0)
         takes_feats = [clean_feet(bundle, f, FOOT_CLEANUP if request.footfix else None) for f in takes_feats]

@@ -211,15 +211,15 @@ def train_variants(variants: list[str], runs: Path, steps: int, seed: int, jobs:
 
 def dance_row(name: str, label: str, bundle: DanceNetBundle, test_pairs: list, beats: dict, takes: int,
               temperature: float, footfix: bool = False, smoothing: float | None = None,
-              footfix_weights: Path | None = None, cleanup: str = FOOT_CLEANUP) -> DanceSet:
-    """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k), feet cleaned by
-    `cleanup` when `footfix`."""
+              footfix_weights: Path | None = None, cleanup: str = FOOT_CLEANUP, beat_lock: bool = False) -> DanceSet:
+    """`takes` dances per test sequence by the model in `bundle` (take k samples with seed k), locked to their
+    song's beats when `beat_lock`, feet cleaned by `cleanup` when `footfix`."""
     row = DanceSet(name, label, info={"steps": bundle.info.get("steps"),
                                       "train_minutes": round(bundle.info.get("train_seconds", 0) / 60, 1)})
     for pair in test_pairs:
         for take in range(takes):
             row.dances.append(generate_for_pair(bundle, pair, take, temperature, footfix, smoothing,
-                                                footfix_weights, cleanup)[0])
+                                                footfix_weights, cleanup, beats[pair.seq] if beat_lock else None)[0])
             row.styles.append(pair.style)
             row.beats_s.append(beats[pair.seq])
     return row
@@ -295,7 +295,8 @@ def _variants(args: argparse.Namespace) -> list[str]:
 
 def _dancenet_rows(args: argparse.Namespace, variants: list[str], test_pairs: list, data: Path, beats: dict,
                    shipped: DanceNetBundle, temperature: float) -> list[DanceSet]:
-    """The trained models' dances, then the shipped weights' with and without the foot clean-up."""
+    """The trained models' dances, then the shipped weights' as generation dances (locked to the beats) with and
+    without the foot clean-up, and with the clean-up but not the beat lock."""
     rows = []
     mel_pairs = None
     for v in variants:
@@ -308,10 +309,12 @@ def _dancenet_rows(args: argparse.Namespace, variants: list[str], test_pairs: li
         print(f"  {v}: {len(rows[-1].dances)} dances")
     if not args.library_only:
         rows.append(dance_row("dancenet_shipped", "DanceNet, shipped weights", shipped, test_pairs, beats,
-                              args.takes, temperature))
+                              args.takes, temperature, beat_lock=True))
         rows.append(dance_row("dancenet_shipped_footfix", f"DanceNet, shipped weights + foot clean-up ({FOOT_CLEANUP})",
-                              shipped,
-                              test_pairs, beats, args.takes, temperature, footfix=True))
+                              shipped, test_pairs, beats, args.takes, temperature, footfix=True, beat_lock=True))
+        rows.append(dance_row("dancenet_shipped_footfix_unlocked", f"DanceNet, shipped weights + foot clean-up "
+                              f"({FOOT_CLEANUP}), no beat lock", shipped, test_pairs, beats, args.takes, temperature,
+                              footfix=True))
     return rows
 
 
@@ -423,8 +426,8 @@ def compare(args: argparse.Namespace) -> int:
 def validate(args: argparse.Namespace) -> int:
     """`dancenet validate`: DanceNet's sampling settings scored on the split's validation songs (training songs
     that `train --validation` leaves out), never on the test songs: every weights file x temperature x output
-    smoothing dances to them (foot clean-up on, as shipped) and is measured as `evaluate` measures, against the
-    real validation dances and the dances the models trained on."""
+    smoothing dances to them (foot clean-up and beat lock on, as shipped; `--beat-lock on off`: both) and is
+    measured as `evaluate` measures, against the real validation dances and the dances the models trained on."""
     t0 = time.perf_counter()
     if not args.weights and not args.curve:
         raise DanceNetError("give the DanceNet weights files to compare, or --curve RUN for a run's learning curve")
@@ -447,12 +450,14 @@ def validate(args: argparse.Namespace) -> int:
     for path in args.weights:
         bundle = DanceNetBundle.load(path)
         k = bundle.model.cfg.mixtures
-        for temperature, smoothing, cleanup in product(args.temperatures, args.smoothing, args.cleanup):
-            name = f"{path} T={temperature} smooth={smoothing}" + ("" if cleanup == FOOT_CLEANUP else f" {cleanup}")
+        for temperature, smoothing, cleanup, lock in product(args.temperatures, args.smoothing, args.cleanup,
+                                                             args.beat_lock):
+            name = (f"{path} T={temperature} smooth={smoothing}" + ("" if cleanup == FOOT_CLEANUP else f" {cleanup}")
+                    + ("" if lock == "on" else " unlocked"))
             rows.append(dance_row(name, f"{run_label(Path(path), bundle)} (K={k}), T {temperature}, "
-                                  f"smoothing {smoothing}, feet: {cleanup}", bundle, val, beats, args.takes,
-                                  temperature, footfix=cleanup != "none", smoothing=smoothing,
-                                  footfix_weights=args.footfix, cleanup=cleanup))
+                                  f"smoothing {smoothing}, feet: {cleanup}, beat lock {lock}", bundle, val, beats,
+                                  args.takes, temperature, footfix=cleanup != "none", smoothing=smoothing,
+                                  footfix_weights=args.footfix, cleanup=cleanup, beat_lock=lock == "on"))
             print(f"  {name}: {len(rows[-1].dances)} dances", flush=True)
     table = measure(rows, ref, fps, style_net)
     if args.drift:

@@ -15,7 +15,7 @@ from ..data.build import PairedSequence, build_dataset
 from ..data.dance_with_melody import read_manifest
 from ..data.pack import read_pack
 from ..data.split import load_split
-from ..engines.dancenet import FOOT_CLEANUP, OUTPUT_SMOOTHING_FRAMES, clean_feet, finish_frames
+from ..engines.dancenet import FOOT_CLEANUP, OUTPUT_SMOOTHING_FRAMES, clean_feet, finish_frames, lock_beats
 from ..motion import Motion
 from ..music.features import analyze_music
 from ..nets.bundle import DanceNetBundle
@@ -55,16 +55,20 @@ def dance_metrics(motion: Motion, beats_s: np.ndarray) -> dict[str, float]:
 
 def generate_for_pair(bundle: DanceNetBundle, pair: PairedSequence, seed: int, temperature: float,
                       footfix: bool, smoothing: float | None = None,
-                      footfix_weights: Path | None = None, cleanup: str = FOOT_CLEANUP) -> tuple[Motion, np.ndarray]:
-    """The bundle's model's dance to a test sequence's music span, from the real dance's first frame, its feet
-    cleaned by `cleanup` when `footfix` (`engines.dancenet.clean_feet`; on the floor either way); returns the
-    motion and predicted contacts. `footfix_weights`: a foot model other than the shipped one."""
+                      footfix_weights: Path | None = None, cleanup: str = FOOT_CLEANUP,
+                      beats_s: np.ndarray | None = None) -> tuple[Motion, np.ndarray]:
+    """The bundle's model's dance to a test sequence's music span, from the real dance's first frame, locked to
+    the song's beats `beats_s` (dance time, s) when given (`engines.dancenet.lock_beats`), its feet cleaned by
+    `cleanup` when `footfix` (`engines.dancenet.clean_feet`; on the floor either way); returns the motion and
+    predicted contacts. `footfix_weights`: a foot model other than the shipped one."""
     cfg = bundle.model.cfg
     style = pair.style if pair.style in bundle.styles else bundle.styles[0]
     first = bundle.normalizer.normalize(pair.motion[:1])[0]
     frames = sample_normalized(bundle.model, pair.music, bundle.styles.index(style), first, temperature,
                                np.random.default_rng(seed))
     feats = finish_frames(bundle, frames, OUTPUT_SMOOTHING_FRAMES if smoothing is None else smoothing)
+    if beats_s is not None:
+        feats = lock_beats(bundle, feats, beats_s)
     feats = clean_feet(bundle, feats, cleanup if footfix else None, footfix_weights)
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     return decode(feats, cfg.fps, bundle.skeleton), feats[:, layout.contacts]

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..constants import WARP_RANGE
 from ..errors import DanceNetError
 from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
@@ -38,10 +39,9 @@ from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
 from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
 
-# A figure plays every frame within this share of the speed it was captured at (in real time, whatever the beats):
+# A figure plays every frame within WARP_RANGE of the speed it was captured at (in real time, whatever the beats):
 # it is laid onto the song's beats at one of `RATIOS` clip beats per song beat, so that a clip danced at half or
 # twice the song's tempo (or read an octave off) keeps its dancers' speed.
-WARP_RANGE = 0.15
 RATIOS = (1.0, 2.0, 0.5, 1.5, 2.0 / 3.0)
 # A ratio is tried for a clip when it plays the clip's median beat within this much (log speed) beyond the range:
 # the per-beat warp decides; ratios far off never fit and only cost time.
