@@ -30,9 +30,9 @@ A clip from a capture session or a download has no music, so its tempo and bars 
 
 On the 56 Dance with Melody dances against their songs' beats (`scripts/clip_analysis.py`, the scoring of
 `dancenet evaluate --library`; figures in docs/library.md) this reads every meter from the motion alone and the
-tempo (or its half or double, within 8%) of 51; with the style's meter the same. Of the five it misses, two
-cha-chas' dancers come back to a pose every 7.0-7.2 of their song's beats where cha-cha figures last 8, and one
-tango's capture is known to be time-compressed: no reading of the motion gives those songs' tempi.
+tempo (or its half or double, within 8%) of 51; with the style's meter the same. Four of the five it misses are
+captures stretched against their songs (three cha-chas by the data's own 25-fps re-export, a tango compressed about
+2.3x): at their older export's length they read right. On the 52 that keep time with their songs it reads 51.
 """
 
 from __future__ import annotations
