@@ -23,7 +23,9 @@ the shares as stored, never instead of them: a figure on data mended by hand, no
         --retime DANCE_C_7 DANCE_C_8 DANCE_C_9 DANCE_T_5
 
 Prints JSON: the shares, the share of wrongly read dances that `library build` names unsure, and each dance read
-wrong. About 20 s once the dataset and its songs' analyses are cached.
+wrong, with `song_tempo_peak`: the best peak of the reading's score within 8% of its song's tempo, half or double,
+over the best score (null: the motion holds no reading of its song's tempo). About 20 s once the dataset and its
+songs' analyses are cached.
 """
 
 from __future__ import annotations
@@ -35,13 +37,22 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from dancenet_core.data.build import MODEL_FPS, build_dataset, mean_skeleton
 from dancenet_core.data.dance_with_melody import read_manifest
 from dancenet_core.data.split import load_split
 from dancenet_core.environment import default_data_dir
 from dancenet_core.evaluation.library_row import clip_analysis, same_tempo
-from dancenet_core.library.analysis import POSE_DIM, UNSURE, analyze_clip, frame_features, pose_return
+from dancenet_core.library.analysis import (
+    POSE_DIM,
+    UNSURE,
+    analyze_clip,
+    frame_features,
+    pose_return,
+    rhythm_signals,
+    tempo_scores,
+)
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import analyze_music
 from dancenet_core.representation import decode
@@ -83,6 +94,17 @@ def two_bar_windows(pose: np.ndarray, song_beats: np.ndarray, meter: int, fps: f
             out.append(round(two_bar_beats(pose[start : start + win], float(np.median(np.diff(here))) * fps, meter)
                              / (2 * meter), 3))
     return out
+
+
+def song_tempo_peak(motion: Motion, song_bpm: float, meter: int) -> float | None:
+    """The best local maximum of the analysis's score (`tempo_scores`, the song's meter) within 8% of the song's
+    tempo, its half or double, over the best score: whether the motion holds a reading of the song's tempo at all
+    (None: no such peak)."""
+    feats, speed, feet, height = frame_features(motion)
+    periods, scores = tempo_scores(feats[:, :POSE_DIM], rhythm_signals(speed, feet, height, motion.fps), motion.fps)
+    score = scores[meter if meter in scores else 4]
+    near = [k for k in find_peaks(score)[0] if same_tempo(motion.fps * 60.0 / periods[k], song_bpm)]
+    return round(float(score[near].max() / score.max()), 3) if near else None
 
 
 def retimed(motion: Motion, scale: float) -> Motion:
@@ -132,6 +154,8 @@ def main() -> None:
         r["two_bar_beats"] = [round(two_bar_beats(x, beat, meter), 2) for x in (pose, pose[:half], pose[half:])]
         song_beats = analyze_music(songs[q.seq].audio).beat_times - songs[q.seq].music_offset_s
         r["two_bar_windows"] = two_bar_windows(pose, song_beats, meter, MODEL_FPS)
+        if not all(r[h]["meter_right"] and r[h]["tempo_right"] for h in HINTS):
+            r["song_tempo_peak"] = song_tempo_peak(motion, r["song_bpm"], meter)
         if q.seq in older:
             scale = older[q.seq] / len(pose)
             slow = retimed(motion, scale)
@@ -160,7 +184,7 @@ def main() -> None:
     out["unsure_of_wrong_from_motion"] = (f"{sum(r['from_motion']['confidence'] < UNSURE for r in free_wrong)}"
                                           f"/{len(free_wrong)}")
     out["read_wrong"] = [{"seq": r["seq"], "style": r["style"], "song_bpm": r["song_bpm"],
-                          "song_meter": r["song_meter"],
+                          "song_meter": r["song_meter"], "song_tempo_peak": r["song_tempo_peak"],
                           **{h: {"bpm": r[h]["bpm"], "meter": r[h]["meter"], "confidence": r[h]["confidence"],
                                  "ratio": round(float(np.float64(r[h]["bpm"]) / r["song_bpm"]), 3)}
                              for h in HINTS}} for r in wrong]
