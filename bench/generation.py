@@ -3,7 +3,8 @@
 - frames per second of cached generation and of the naive way (the full stack over the last
   receptive-field frames for every new frame, as the authors' release does), and their ratio;
 - seconds to dance a 3-minute song once its music analysis is cached (style, music encoder, sampling,
-  decoding, foot clean-up), and the cold analysis it needs the first time;
+  beat lock, decoding, foot clean-up), and the cold analysis it needs the first time; the same dance with the
+  beat lock on and off (best of three each, alternating) and their ratio;
 - peak resident memory of a whole `generate_dance` for a 10-minute song, in a fresh process;
 - the numpy runtime against the torch networks it replaced (issue 15), each in fresh processes with the analysis
   cached: the 3-minute song's first dance (imports included) and second, the 10-minute song's peak memory,
@@ -115,12 +116,21 @@ r = generate_dance(DanceRequest({str(song)!r}, weights={weights!r}, footfix=True
 print(json.dumps({{"first_s": first, "second_s": time.perf_counter() - t, "stages": r.timings}}))
 """))
 
+    locked: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(3):  # best of three, alternating, as the machine is shared
+        for lock in (True, False):
+            t = time.perf_counter()
+            generate_dance(DanceRequest(song, weights=weights, footfix=True, seed=1, beat_lock=lock))
+            locked[lock].append(time.perf_counter() - t)
+    on, off = min(locked[True]), min(locked[False])
     # Best of three, alternating, as the machine is shared.
     runs = [fresh(torch_networks) for _ in range(3) for torch_networks in (False, True)]
     ours, theirs = ({key: min(r[key] for r in runs[i::2]) for key in ("first_s", "second_s")} for i in (0, 1))
     return {"song_s": 180.0, "first_run_s_with_cold_analysis": round(cold, 2),
             "dance_s_with_cached_analysis": round(warm, 2),
             "stages_s": {k: round(v, 3) for k, v in result.timings.items()},
+            "beat_lock": {"locked_s": round(on, 2), "unlocked_s": round(off, 2),
+                          "locked_over_unlocked_time": round(on / off, 3)},
             "fresh_process_first_dance_s": round(ours["first_s"], 2),
             "fresh_process_second_dance_s": round(ours["second_s"], 2),
             "torch_networks_fresh_process_first_dance_s": round(theirs["first_s"], 2),

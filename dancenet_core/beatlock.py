@@ -7,7 +7,8 @@ kinematic beats the Beat Align Score counts, `beats.motion_beats`) are paired wi
 is played faster or slower between them, piecewise linearly as the library engine lays its figures on the beats,
 so that each paired dance beat lands on its song beat. No frame plays more than `constants.WARP_RANGE` faster or
 slower than danced, the dance keeps its length, its first and last frames (and the frames a continued dance keeps),
-and its path across the floor: the root is sampled at the warped times like every joint.
+and its path across the floor. It runs on the model's features, before the foot clean-up, which then holds the
+warped dance's feet.
 
 The pairing is dynamic programming over (song beat, dance beat) pairs no further apart than `REACH_BEATS` of the
 song's beat interval: the chain of pairs that the speed limit allows from the first kept frame to the last frame
@@ -20,9 +21,10 @@ import numpy as np
 
 from .beats import motion_beats
 from .constants import WARP_RANGE
-from .motion import Motion
-from .returns import sample_frames
-from .skeleton import BODY_JOINTS
+from .kinematics import fk_numpy
+from .representation import FeatureLayout, decode, heading_frames, root_steps
+from .series import interp_frames
+from .skeleton import BODY_JOINTS, Skeleton
 
 # A dance beat is paired with a song beat at most this share of the song's median beat interval away: half an
 # interval pairs each dance beat with its nearest song beat at most.
@@ -69,11 +71,21 @@ def beat_warp(dance_beats: np.ndarray, song_beats: np.ndarray, frames: int, keep
     return out
 
 
-def lock_to_beats(motion: Motion, song_beats_s: np.ndarray, keep: int = 0, max_warp: float = WARP_RANGE,
-                  reach_beats: float = REACH_BEATS) -> tuple[Motion, np.ndarray]:
-    """`motion` time-warped so that its beats land on `song_beats_s` (seconds from its first frame), its frames
-    before `keep` as they are, and the source frame of every frame (for what else follows the frames: contacts)."""
-    dance_beats = motion_beats(motion.positions()[:, :BODY_JOINTS], motion.fps)
-    src = beat_warp(dance_beats, np.asarray(song_beats_s) * motion.fps, motion.num_frames, keep, max_warp,
-                    reach_beats)
-    return sample_frames(motion, src), src
+def lock_to_beats(feats: np.ndarray, fps: float, skeleton: Skeleton, song_beats_s: np.ndarray, keep: int = 0,
+                  max_warp: float = WARP_RANGE, reach_beats: float = REACH_BEATS) -> tuple[np.ndarray, np.ndarray]:
+    """A dance's features [T, D] (`representation.py`) time-warped so that its beats land on `song_beats_s`
+    (seconds from its first frame), its frames up to `keep` as they are, and the source frame of every frame [T].
+
+    Every channel is sampled linearly at the warped times (the model makes them as continuous channels, and its
+    output smoothing treats them so), but the root's steps and turns, which count per frame, are taken from its path
+    and heading sampled at those times, so the dance crosses the floor as it did; contacts are their nearest
+    frame's."""
+    motion = decode(feats, fps, skeleton)
+    body = fk_numpy(skeleton, motion.rotations, motion.root_positions, joints=BODY_JOINTS)[0]
+    src = beat_warp(motion_beats(body, fps), np.asarray(song_beats_s) * fps, len(feats), keep, max_warp, reach_beats)
+    layout = FeatureLayout.for_skeleton(skeleton)
+    out = interp_frames(feats, src).astype(feats.dtype)
+    root, yaw = interp_frames(motion.root_positions, src), interp_frames(heading_frames(motion), src)
+    out[:, [0, 2, 3]] = root_steps(root, yaw)
+    out[:, layout.contacts] = feats[np.round(src).astype(int), layout.contacts]
+    return out, src

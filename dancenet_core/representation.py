@@ -115,6 +115,16 @@ def foot_contacts(
     return (near & (vel < speed)).astype(np.float32)
 
 
+def root_steps(root: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """The root's channels that count per frame [T, 3] (dx, dz in the previous frame's heading frame, dyaw; the
+    first frame's 0) from its path [T, 3] and unwrapped heading [T]: what `decode` integrates back."""
+    delta = np.zeros((len(root), 3))
+    delta[1:] = root[1:] - root[:-1]
+    prev_yaw = np.concatenate([yaw[:1], yaw[:-1]])
+    local = Rotation.from_euler("y", -prev_yaw[:, None]).apply(delta)
+    return np.stack([local[:, 0], local[:, 2], yaw - prev_yaw], axis=-1)
+
+
 def encode(motion: Motion, floor: float | None = None) -> np.ndarray:
     """Motion -> features [T, D] (float32)."""
     s = motion.skeleton
@@ -124,14 +134,8 @@ def encode(motion: Motion, floor: float | None = None) -> np.ndarray:
     t = motion.num_frames
     feats = np.zeros((t, layout.size), dtype=np.float64)
 
-    delta = np.zeros((t, 3))
-    delta[1:] = root[1:] - root[:-1]
-    prev_yaw = np.concatenate([yaw[:1], yaw[:-1]])
-    local = Rotation.from_euler("y", -prev_yaw[:, None]).apply(delta)
-    feats[:, 0] = local[:, 0]
+    feats[:, [0, 2, 3]] = root_steps(root, yaw)
     feats[:, 1] = root[:, 1]
-    feats[:, 2] = local[:, 2]
-    feats[:, 3] = yaw - prev_yaw
     feats[:, 4] = swing[:, 0]
     feats[:, 5] = swing[:, 2]
     feats[:, layout.rotations] = motion.rotations[:, 1:].reshape(t, -1)

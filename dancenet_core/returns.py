@@ -51,7 +51,7 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, kee
         blend = int(round(JOIN_BLEND_S * fps))
         frames = np.arange(first - slack - 1, last + slack + blend, dtype=float)
         src_frames = _bar_map(frames, edges[target:target + n_bars + 1] * fps, edges[source:source + n_bars + 1] * fps)
-        copy = sample_frames(motion, src_frames)
+        copy = _sample(motion, src_frames)
         if how == "mirror":
             copy = copy.mirrored()
         offset = first - slack - 1  # copy frame i stands for dance frame offset + i
@@ -161,7 +161,7 @@ def _copies(form: SongForm, mode: str, section_modes: dict[str, str]) -> list[tu
     return out
 
 
-def sample_frames(motion: Motion, frames: np.ndarray) -> Motion:
+def _sample(motion: Motion, frames: np.ndarray) -> Motion:
     """The motion at fractional frames (rotations by normalised quaternion interpolation, which between
     neighbouring frames is slerp to within 1e-4 rad at a quarter the cost; the root linear), as a Motion;
     frames before the first carry on its first step backwards (a phrase copied from the dance's start still

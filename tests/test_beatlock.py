@@ -14,6 +14,7 @@ from dancenet_core.beats import motion_beats
 from dancenet_core.constants import WARP_RANGE
 from dancenet_core.evaluation.metrics import beat_align_score
 from dancenet_core.motion import Motion
+from dancenet_core.representation import decode, encode, start_pose
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX
 
 FPS = 25.0
@@ -34,6 +35,12 @@ def _swinging(seconds: float = 20.0, beat_s: float = 0.5) -> Motion:
 
 def _bas(m: Motion, beats_s: np.ndarray) -> float:
     return beat_align_score(m.positions()[:, :BODY_JOINTS], m.fps, beats_s)
+
+
+def _locked(m: Motion, beats_s: np.ndarray, keep: int = 0) -> tuple[Motion, np.ndarray]:
+    """`m` locked to `beats_s` through its features, as generation locks them, and the warp."""
+    feats, src = lock_to_beats(encode(m), FPS, m.skeleton, beats_s, keep)
+    return decode(feats, FPS, m.skeleton, *start_pose(m)), src
 
 
 def test_the_warp_lands_dance_beats_on_song_beats_within_the_limit() -> None:
@@ -60,17 +67,17 @@ def test_the_warp_lands_dance_beats_on_song_beats_within_the_limit() -> None:
 def test_a_dance_drifting_off_its_beats_is_locked_onto_them() -> None:
     m = _swinging()
     beats = np.arange(0.5, m.duration, 0.5)
-    locked, src = lock_to_beats(m, beats)
+    locked, src = _locked(m, beats)
     assert locked.num_frames == m.num_frames
     assert _bas(m, beats) < 0.4 and _bas(locked, beats) > 0.8
     assert np.abs(np.diff(src) - 1).max() <= WARP_RANGE + 1e-9
     # The path across the floor is the dance's: it starts and ends where it did and goes the same way.
-    np.testing.assert_allclose(locked.root_positions[[0, -1]], m.root_positions[[0, -1]], atol=1e-12)
-    assert (np.diff(locked.root_positions[:, 2]) > 0).all() and np.abs(locked.root_positions[:, 0]).max() < 1e-12
+    np.testing.assert_allclose(locked.root_positions[[0, -1]], m.root_positions[[0, -1]], atol=1e-5)
+    assert (np.diff(locked.root_positions[:, 2]) > 0).all() and np.abs(locked.root_positions[:, 0]).max() < 1e-5
     speed = np.diff(locked.root_positions[:, 2]) * FPS
-    assert speed.min() >= 0.3 * (1 - WARP_RANGE) - 1e-9 and speed.max() <= 0.3 * (1 + WARP_RANGE) + 1e-9
-    kept, _ = lock_to_beats(m, beats, keep=100)
-    np.testing.assert_allclose(kept.rotations[:100], m.rotations[:100], atol=1e-9)
+    assert speed.min() >= 0.3 * (1 - WARP_RANGE) - 1e-4 and speed.max() <= 0.3 * (1 + WARP_RANGE) + 1e-4
+    kept, _ = _locked(m, beats, keep=100)
+    np.testing.assert_allclose(kept.rotations[:100], m.rotations[:100], atol=1e-6)  # float32 features
     assert len(motion_beats(kept.positions()[:, :BODY_JOINTS], FPS)) == len(
         motion_beats(m.positions()[:, :BODY_JOINTS], FPS))  # the same moves, retimed
 

@@ -92,13 +92,9 @@ def clean_feet(bundle: Bundle, feats: np.ndarray, cleanup: str | None = FOOT_CLE
 
 def lock_beats(bundle: Bundle, feats: np.ndarray, beats_s: np.ndarray, keep: int = 0) -> np.ndarray:
     """Unnormalised features [T, D] with the dance's beats moved onto the song's `beats_s` (seconds from its first
-    frame; `beatlock.py`), its first `keep` frames as they are: decoded, time-warped and encoded again, each frame's
-    predicted contacts those of its source frame. Before the foot clean-up, which holds the warped dance's feet."""
-    layout = FeatureLayout.for_skeleton(bundle.skeleton)
-    warped, src = lock_to_beats(decode(feats, bundle.model.cfg.fps, bundle.skeleton), beats_s, keep)
-    out = encode(warped).astype(feats.dtype)
-    out[:, layout.contacts] = feats[np.round(src).astype(int), layout.contacts]
-    return out
+    frame; `beatlock.py`), its first `keep` frames as they are. Before the foot clean-up, which holds the warped
+    dance's feet."""
+    return lock_to_beats(feats, bundle.model.cfg.fps, bundle.skeleton, beats_s, keep)[0]
 
 
 def sample_dance(bundle: Bundle, cond: np.ndarray, first: np.ndarray, sampling: Sampling,

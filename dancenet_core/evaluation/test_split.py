@@ -91,8 +91,9 @@ def split_with_beats(
 
 
 def evaluate_on_test_split(bundle: DanceNetBundle, data_dir: Path, temperature: float, seed: int = 0,
-                           footfix: bool = False) -> dict:
-    """Metrics of real and generated dances on every test-split sequence of a style the model knows."""
+                           footfix: bool = False, beat_lock: bool = True) -> dict:
+    """Metrics of real and generated dances on every test-split sequence of a style the model knows (locked to
+    the song's beats when `beat_lock`, as generation dances)."""
     split, pairs, beats = split_with_beats(data_dir)
     layout = FeatureLayout.for_skeleton(bundle.skeleton)
     rows = []
@@ -101,7 +102,8 @@ def evaluate_on_test_split(bundle: DanceNetBundle, data_dir: Path, temperature: 
         if pair.style not in bundle.styles:
             continue
         real = decode(pair.motion, 25.0, bundle.skeleton)
-        gen, contacts = generate_for_pair(bundle, pair, seed, temperature, footfix)
+        gen, contacts = generate_for_pair(bundle, pair, seed, temperature, footfix,
+                                          beats_s=beats[seq_id] if beat_lock else None)
         acc = float((contacts == pair.motion[: len(contacts), layout.contacts]).mean())
         rows.append({"seq": seq_id, "style": pair.style, "real": dance_metrics(real, beats[seq_id]),
                      "generated": dance_metrics(gen, beats[seq_id]), "contact_accuracy": acc})
@@ -115,4 +117,5 @@ def evaluate_on_test_split(bundle: DanceNetBundle, data_dir: Path, temperature: 
         summary[kind]["max_lowest_toe_m"] = max(r[kind]["lowest_toe_m"] for r in rows)
     summary["generated"]["contact_accuracy"] = float(np.mean([r["contact_accuracy"] for r in rows]))
     summary["generated"]["max_root_extent_m"] = max(r["generated"]["root_extent_m"] for r in rows)
-    return {"temperature": temperature, "seed": seed, "footfix": footfix, "summary": summary, "per_sequence": rows}
+    return {"temperature": temperature, "seed": seed, "footfix": footfix, "beat_lock": beat_lock, "summary": summary,
+            "per_sequence": rows}

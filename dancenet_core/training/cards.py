@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..atomic import write_text
+from ..constants import WARP_RANGE
 from ..data.dance_with_melody import Recording, read_manifest
 from ..data.split import SPLIT_FILE, validation_songs
 from ..engines.dancenet import FOOT_CLEANUP
@@ -16,6 +17,7 @@ from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
+from ..footlock import GROUND_M, STILL_MPS
 from ..music.features import FEATURE_VERSION
 from ..music.style import (
     BASELINE_WEIGHTS,
@@ -436,11 +438,18 @@ def _foot_sections(footfix_info: dict | None) -> list[str]:
         "## Foot clean-up",
         "Every dance is stood on the floor from its predicted contacts (the root's height only, frame by frame). "
         + ("The clean-up holds each foot where it stands through each contact the model predicts, and wherever it "
-           "leaves a foot still on the floor, the legs reaching it by two-bone IK (hip and knee; the foot's own turn, "
-           "the path and the upper body kept); no training."
+           f"leaves a foot still on the floor (within {GROUND_M * 100:g} cm of it, slower than {STILL_MPS:g} m/s), the "
+           "legs reaching it by two-bone IK (hip and knee; the foot's own turn, the path and the upper body kept); "
+           "no training."
            if FOOT_CLEANUP == "lock" else f"The clean-up is `{FOOT_CLEANUP}` (`engines/dancenet.py`).")
         + " Chosen on the validation songs among the contact lock, the Foot Constraint Model and both "
           "(`dancenet validate --cleanup`; docs/experiments.md).",
+        "",
+        "## Beat lock",
+        "Before the foot clean-up, each dance is time-warped so that its kinematic beats (the Beat Align Score's) "
+        f"land on the song's beats, no frame more than {WARP_RANGE:.0%} faster or slower than sampled "
+        "(`beatlock.py`; on by default, `--no-beat-lock` or the panel's Beat Lock off). The test figures above are "
+        "measured with it, as generation dances.",
     ]
     if footfix_info:
         lines += [
