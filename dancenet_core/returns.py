@@ -1,12 +1,17 @@
 """Returns danced again: where the music comes back (the song's form, `music.form`), the dance comes back too.
 
-Any engine's take is rewritten section by section after it is danced: a section whose label was heard before
-(A2 after A1) takes the frames danced at the label's first occurrence, bar by bar (each bar's time stretched onto
-the new bar's, as the tempo may drift), either as they were ("repeat") or left and right swapped ("mirror"). The
-copy is laid where the dancer stands and faces when it begins (the source's heading turned onto the dancer's,
-its path moved to the dancer's place), and the dance after it is carried on from where the copy ends (turned
-and moved rigidly), so the path and the heading never jump. Each join moves up to JOIN_SLACK_S from the section's
-boundary, to where the two dances' poses are most alike, and crossfades over JOIN_BLEND_S.
+Any engine's take is rewritten section by section after it is danced: a section whose label was heard before (A2
+after A1) takes the frames danced at an earlier occurrence of the label, bar by bar (each bar's time stretched onto
+the new bar's, as the tempo may drift), either as they were ("repeat") or left and right swapped ("mirror"). A run
+of returning sections that repeats a run of earlier music (A2 B2 after A1 B1) is one copy of that run, with one join
+in and one out: every join crossfades two dances that need not be alike, the one cost of a return (on the validation
+songs, joins alone cost the library engine 1.2 FID_k, docs/form.md). No copied bar plays more than
+`constants.WARP_RANGE` faster or slower than its source (a downbeat the tracker missed makes a bar twice as long),
+the engines' real-time limit. The copy is laid where the dancer stands and faces when it begins (the source's
+heading turned onto the dancer's, its path moved to the dancer's place), and the dance after it is carried on from
+where the copy ends (turned and moved rigidly), so the path and the heading never jump. Each join moves up to
+JOIN_SLACK_S from the section's boundary, to where the two dances' poses are most alike, and crossfades over
+JOIN_BLEND_S.
 
 Sections are taken in order and copy from the dance as rewritten so far, so a third occurrence repeats the first
 as it finally stands. A section whose source lies before the danced part (a part of the song), or within the
@@ -18,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .constants import WARP_RANGE
 from .floor import toe_ends
 from .motion import Motion
 from .music.form import SongForm
@@ -148,17 +154,49 @@ def _best_join(motion: Motion, copy: Motion, offset: int, candidates: range) -> 
 
 
 def _copies(form: SongForm, mode: str, section_modes: dict[str, str]) -> list[tuple[int, int, int, str]]:
-    """(first bar, end bar, source's first bar, mode) for each returning section danced again (repeat or mirror,
-    by its own mode or the dance's): its bars against its label's first occurrence's, as many as both have."""
-    out: list[tuple[int, int, int, str]] = []
-    for section in form.sections:
-        how = section_modes.get(section.name, mode)
-        if section.occurrence == 1 or how == "anew":
+    """(first bar, end bar, source's first bar, mode) for each run of returning sections danced again (repeat or
+    mirror, by its own mode or the dance's): a return and the returns right after it copy the earlier occurrence of
+    its label that the most of them carry on from (A3 C2 copy A2 C1 rather than A1 and C1 apart; the first
+    occurrence when none carries further), as one copy; bars against bars, as many as both have, cut where a bar's
+    length is off its source's by more than WARP_RANGE."""
+    sections = form.sections
+    modes = [section_modes.get(s.name, mode) for s in sections]
+    runs: list[tuple[int, int, int, str]] = []
+    i = 0
+    while i < len(sections):
+        if sections[i].occurrence == 1 or modes[i] == "anew":
+            i += 1
             continue
-        first = next(s for s in form.sections if s.label == section.label)
-        bars = min(section.bars, first.bars, section.first_bar - first.first_bar)  # never reads what it writes
-        out.append((section.first_bar, section.first_bar + bars, first.first_bar, how))
-    return out
+        target = sections[i].first_bar
+        best: tuple[int, int, int] = (0, 0, 0)  # sections covered, bars, source's first bar
+        for source in (s for s in sections[:i] if s.label == sections[i].label):
+            bars = min(sections[i].bars, source.bars, target - source.first_bar)  # never reads what it writes
+            covered = 1
+            for j in range(i + 1, len(sections)):
+                carry = source.first_bar + bars  # where the run's source goes on
+                on = next((s for s in sections[:j] if s.first_bar == carry and s.label == sections[j].label), None)
+                if (on is None or modes[j] != modes[i] or sections[j].occurrence == 1
+                        or sections[j].first_bar != target + bars or carry + sections[j].bars > target):
+                    break
+                bars, covered = bars + min(sections[j].bars, on.bars), covered + 1
+                if on.bars < sections[j].bars:
+                    break
+            if covered > best[0]:
+                best = (covered, bars, source.first_bar)
+        covered, bars, source_bar = best
+        runs += _within_warp(form.bar_starts, target, target + bars, source_bar, modes[i])
+        i += covered
+    return runs
+
+
+def _within_warp(edges: np.ndarray, first: int, end: int, source: int, how: str) -> list[tuple[int, int, int, str]]:
+    """The copy of bars [first, end) from `source` on, as the runs of its bars whose length is within WARP_RANGE of
+    their source bar's (of two bars or more: a shorter one would be little more than its joins)."""
+    n = end - first
+    ratio = np.diff(edges[first:end + 1]) / np.diff(edges[source:source + n + 1])
+    good = np.concatenate([[False], np.abs(ratio - 1.0) <= WARP_RANGE, [False]])
+    starts, ends = np.flatnonzero(good[1:] & ~good[:-1]), np.flatnonzero(~good[1:] & good[:-1])
+    return [(first + a, first + b, source + a, how) for a, b in zip(starts, ends, strict=True) if b - a >= 2]
 
 
 def _sample(motion: Motion, frames: np.ndarray) -> Motion:

@@ -12,10 +12,10 @@ from dancenet_core.evaluation.form import body_poses, return_likeness
 from dancenet_core.generate import generate_dance
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import analyze_music
-from dancenet_core.music.form import song_form
+from dancenet_core.music.form import Section, SongForm, song_form
 from dancenet_core.representation import heading_frames
 from dancenet_core.request import DanceRequest
-from dancenet_core.returns import dance_returns
+from dancenet_core.returns import _copies, dance_returns
 from tests.made_up import analysis, arranged_training_song
 
 BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s
@@ -203,3 +203,29 @@ def test_the_library_engine_lists_each_figure_as_danced_returns_included(arrange
                 if section.start_s + 0.5 <= f["song_s"][0] < section.end_s - 0.5]
 
     assert clips(a2) == clips(a1) and len(clips(a1)) >= 4  # the return is the same figures, from the same places
+
+
+def test_a_run_of_returns_is_one_copy_of_the_run_it_repeats():
+    """A3 C2 repeat A2 C1, which were heard together: one copy of A2 C1 (no join between A3 and C2), not A1 and
+    C1 copied apart."""
+    form = song_form(analysis(arranged_features("ABACAC")))
+    assert form.labels == "ABACAC"
+    assert _copies(form, "repeat", {}) == [(16, 24, 0, "repeat"), (32, 48, 16, "repeat")]
+    motion = wandering_motion(form.bar_starts[-1])
+    out, _map = dance_returns(motion, form, 0.0, "repeat")
+    poses = body_poses(out.positions(), heading_frames(out))
+    across = np.arange(int(76 * motion.fps), int(84 * motion.fps))  # A3 into C2 (80 s), clear of the copy's joins
+    assert np.abs(poses[across] - poses[across - int(32 * motion.fps)]).max() < 1e-6  # A2 into C1 as danced
+
+
+def test_a_copy_leaves_out_the_bars_it_would_play_beyond_the_real_time_limit():
+    """A downbeat missed where the music returns makes one bar twice its source's length: that bar is danced as
+    it was, the bars around it copied."""
+    edges = np.arange(33) * 2.0
+    edges[21:] += 2.0  # bar 20 lasts 4 s
+    sections = (Section("A", 1, 0.0, float(edges[8]), 0, 8, 1.0), Section("B", 1, float(edges[8]), float(edges[16]),
+                8, 8, 1.0), Section("A", 2, float(edges[16]), float(edges[24]), 16, 8, 0.9),
+                Section("B", 2, float(edges[24]), float(edges[32]), 24, 8, 0.9))
+    form = SongForm(edges, (), sections)
+    assert _copies(form, "repeat", {}) == [(16, 20, 0, "repeat"), (21, 32, 5, "repeat")]
+    assert _copies(form, "repeat", {"A2": "anew"}) == [(24, 32, 8, "repeat")]
