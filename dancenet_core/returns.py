@@ -4,8 +4,7 @@ Any engine's take is rewritten section by section after it is danced: a section 
 after A1) takes the frames danced at an earlier occurrence of the label, bar by bar (each bar's time stretched onto
 the new bar's, as the tempo may drift), either as they were ("repeat") or left and right swapped ("mirror"). A run
 of returning sections that repeats a run of earlier music (A2 B2 after A1 B1) is one copy of that run, with one join
-in and one out: every join crossfades two dances that need not be alike, the one cost of a return (on the validation
-songs, joins alone cost the library engine 1.2 FID_k, docs/form.md). No copied bar plays more than
+in and one out, as every join crossfades two dances that need not be alike. No copied bar plays more than
 `constants.WARP_RANGE` faster or slower than its source (a downbeat the tracker missed makes a bar twice as long),
 the engines' real-time limit. The copy is laid where the dancer stands and faces when it begins (the source's
 heading turned onto the dancer's, its path moved to the dancer's place), and the dance after it is carried on from
