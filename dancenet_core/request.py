@@ -144,8 +144,8 @@ class DanceRequest:
         "remove foot sliding and floor contact errors", bool, "--no-footfix",
         "Foot Clean-up"))
     beat_lock: bool = _option(True, Option(
-        "lock the dance to the song's beats: its own beats moved onto them, no frame more than 15% faster or "
-        "slower than danced", bool, "--no-beat-lock", "Beat Lock"))
+        "lock the dance to the song's beats: its own beats moved onto them, every frame played at 0.85-1.15x the "
+        "speed it was danced", bool, "--no-beat-lock", "Beat Lock"))
     start_s: float = _option(0.0, Option(
         "dance from this many seconds into the song (default: its beginning)", float, "--start",
         metavar="SECONDS"))

@@ -190,6 +190,7 @@ def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: G
         "temperature": args.temperature,
         "energy": args.energy,
         "footfix": args.footfix,
+        "beat_lock": args.beat_lock,
         "root_motion": args.root_motion,
         "returns": args.returns,
         "sections": [str(o) for o in request.sections],
