@@ -61,9 +61,7 @@ def beat_warp(dance_beats: np.ndarray, song_beats: np.ndarray, frames: int, keep
         if ok.any():
             p = int(np.argmax(np.where(ok, best[:q], -np.inf)))
             best[q], back[q] = best[p] + gain[q], p
-    if not np.isfinite(best[-1]):  # the last frame beyond reach from the kept ones at this limit: no warp
-        return out
-    chain = [len(o) - 1]
+    chain = [len(o) - 1]  # the end is always reached: straight from the start at the dance's own speed, if no pair
     while chain[-1] != 0:
         chain.append(int(back[chain[-1]]))
     chain.reverse()
