@@ -19,7 +19,6 @@ vectors says how well the figure fits the bar. Weights are an `.npz` of plain ar
 from __future__ import annotations
 
 import json
-import weakref
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -199,19 +198,6 @@ def library_frames(library: MotionLibrary) -> np.ndarray:
     return np.concatenate([motion_frames(pos[a:b], library.fps) for a, b in zip(edges[:-1], edges[1:], strict=True)])
 
 
-_FRAMES: dict[int, np.ndarray] = {}
-
-
-def cached_frames(library: MotionLibrary) -> np.ndarray:
-    """`library_frames`, kept while the library lives: the engine keeps its library loaded, so every dance after
-    the first skips the forward kinematics of the whole library."""
-    key = id(library)
-    if key not in _FRAMES:
-        _FRAMES[key] = library_frames(library)
-        weakref.finalize(library, _FRAMES.pop, key, None)
-    return _FRAMES[key]
-
-
 class FigureMatch:
     """How well each figure of a plan fits the song: on each bar, the cosine of the bar's music embedding and the
     embedding of the figure's motion over the clip beats the figure lays on that bar (`fit`); over the whole part,
@@ -223,7 +209,7 @@ class FigureMatch:
     def __init__(self, model: MatchModel, library: MotionLibrary, features: np.ndarray,
                  bar_beats: list[np.ndarray]) -> None:
         self.model, self.library = model, library
-        self.frames = cached_frames(library)
+        self.frames = library.match_frames
         self.music = model.embed_music(music_bars(features, bar_beats, model.context))
         song = model.style_probs(self.music).mean(axis=0) if model.style_layer is not None else None
         self.song_style = None if song is None else song / song.max()  # its most probable style: 1

@@ -22,11 +22,12 @@ from dancenet_core.library.match import (
     FigureMatch,
     MatchModel,
     bar_points,
+    library_frames,
     motion_bars,
     motion_frames,
     music_bars,
 )
-from dancenet_core.library.store import MotionLibrary
+from dancenet_core.library.store import MotionLibrary, library_path
 from dancenet_core.skeleton import BODY_JOINTS
 
 
@@ -176,11 +177,26 @@ def test_the_engine_matches_a_library_without_style_labels_only(tmp_path: Path, 
         for k, bpm in enumerate((100, 110, 120)):
             write_bvh(folder / f"clip{k}.bvh", dancer(30, bpm, amplitude=0.3 + 0.1 * k, phase=k))
         assert _cli("library", "build", str(tmp_path / name)) == 0
+        with np.load(library_path(tmp_path / name)) as built:  # the match's motion features, from the build
+            assert ("match_frames" in built.files) == (name == "unsorted")
         out = tmp_path / f"out_{name}"
         assert _cli("generate", str(wav), "-o", str(out), "--engine", "library", "--library",
                     str(tmp_path / name)) == 0
         assert json.loads((out / "song.json").read_text())["takes_details"]
         assert len(used) == 1  # the unsorted folder, not the sorted one
+
+
+def test_a_library_without_styles_is_loaded_with_the_matchs_motion_features(library: MotionLibrary,
+                                                                            tmp_path: Path) -> None:
+    """The build stores the match's features of a library whose clips name no style (the first dance from it
+    skips the forward kinematics of the whole library); a sorted library, which the match never dances, does
+    not carry them."""
+    for styles, stored in (([""] * library.num_clips, True), (["salsa"] * library.num_clips, False)):
+        path = tmp_path / f"{stored}.npz"
+        dataclasses.replace(library, styles=styles).save(path)
+        loaded = MotionLibrary.load(path)
+        assert ("match_frames" in loaded.__dict__) == stored  # read from the file, not computed
+        np.testing.assert_allclose(loaded.match_frames, library_frames(loaded), atol=1e-6)
 
 
 def test_the_own_style_share_counts_the_figures_seconds(library: MotionLibrary) -> None:
