@@ -475,18 +475,23 @@ def _run_local(todo: list, task: SongTask, out: Path, jobs: int,
                 ended(i, row)
                 give(conn, process)
     finally:
-        _stop(out, list(busy.values()))
+        _stop(out, busy, ended)
 
 
-def _stop(out: Path, busy: list[tuple[mp.process.BaseProcess, tuple]]) -> None:
+def _stop(out: Path, busy: dict[Connection, tuple[mp.process.BaseProcess, tuple]],
+          ended: Callable[[int, dict[str, Any]], None]) -> None:
     """Stop the workers still dancing (Ctrl-C, SIGTERM, an error here) at once, and remove their unfinished
     files: each temporary name says its process, now gone (`atomic.remove_leftovers`). Killed, not asked: a
     signal that Python turns into an exception can land where it is lost (a C library's callback), and the
-    files are removed here either way."""
-    for process, _item in busy:
+    files are removed here either way. A song a worker finished before the stop, its row still in the pipe
+    (workers that start together end their first songs together), is reported done, as the next run finds it."""
+    for process, _item in busy.values():
         process.kill()
-    for process, (_i, song, _rid) in busy:
+    for conn, (process, (_i, song, _rid)) in busy.items():
         process.join()
+        with suppress(EOFError, OSError):  # nothing sent, or a row cut off by the kill
+            if conn.poll():
+                ended(*conn.recv())
         remove_leftovers(out / song.folder)
     remove_leftovers(out / RECORDS)
 

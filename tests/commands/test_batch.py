@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import multiprocessing as mp
 import os
 import random
 import signal
@@ -13,22 +14,27 @@ import socket
 import subprocess
 import sys
 import time
+from contextlib import suppress
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
 from pathlib import Path
+from typing import Any
 
 import pytest
 import soundfile as sf
 from made_up import music
 
-from dancenet_core.catalog import RECORDS, CatalogSong, _ray_song, read_catalog, request_id, run_catalog
-from dancenet_core.cli import main
+from dancenet_core.catalog import RECORDS, CatalogSong, _ray_song, _stop, read_catalog, request_id, run_catalog
+from dancenet_core.cli import build_parser, main
 from dancenet_core.commands.batch import GenerateTask
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
-from dancenet_core.request import options
+from dancenet_core.request import options, options_from
 
 ROOT = Path(__file__).resolve().parents[2]
 GOOD = 11
 BAD = "unreadable.wav"
 TEMP_MARK = ".tmp"
+HANG_S = 600  # a batch command still running after this hangs (minutes on a loaded machine with cold caches)
 
 
 @pytest.fixture(scope="module")
@@ -137,40 +143,58 @@ def _cold(tmp_path: Path) -> dict[str, str]:
     return {**os.environ, "DANCENET_CACHE": str(tmp_path / "cache")}
 
 
-def _done(out: Path) -> int:
-    try:
-        return json.loads((out / "batch.json").read_text())["counts"]["done"]
-    except (OSError, ValueError):
-        return 0
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
-def test_a_killed_worker_fails_its_song_only_and_the_rerun_finishes_the_missing_ones(songs: Path, reference: dict,
-                                                                                      tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while _done(out) < 1 and run.poll() is None and time.monotonic() < deadline:
+def _wait_for(run: subprocess.Popen, out: Path, done: int) -> None:
+    """Until the batch's table (written once its songs are planned) counts `done` songs danced, or the run ends
+    (or hangs: `HANG_S`)."""
+    deadline = time.monotonic() + HANG_S
+    while run.poll() is None and time.monotonic() < deadline:
+        with suppress(OSError, ValueError):
+            if json.loads((out / "batch.json").read_text())["counts"]["done"] >= done:
+                return
         time.sleep(0.02)
-    time.sleep(0.2)  # the worker that finished that song is on its next one
-    workers = _children(run.pid)
-    assert len(workers) == 2, workers
-    os.kill(workers[0], signal.SIGKILL)
-    stdout, stderr = run.communicate(timeout=120)
-    assert run.returncode == 1, stderr
+
+
+@dataclass(frozen=True)
+class KilledOn:
+    """The command's own task, but the worker process that takes song `folder` is killed as it begins it (SIGKILL,
+    what the system's out-of-memory killer sends): the kill lands mid-song, the song's folder and begun record
+    made, however fast the machine is. At module level: each spawned worker unpickles it."""
+
+    task: GenerateTask
+    folder: str
+
+    def settings(self, song: CatalogSong) -> dict[str, Any]:
+        return self.task.settings(song)
+
+    def outputs_key(self) -> dict[str, Any]:
+        return self.task.outputs_key()
+
+    def __call__(self, song: CatalogSong, folder: Path) -> dict[str, Any]:
+        if song.folder == self.folder:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return self.task(song, folder)
+
+
+def test_a_killed_worker_fails_its_song_only_and_the_rerun_finishes_the_missing_ones(
+        songs: Path, reference: dict, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "out"
+    command = _command(songs, out)[3:]  # `dancenet batch ... --jobs 2`
+    args = build_parser(command).parse_args(command)
+    # song 01 is the second worker's first song: the batch starts a worker in its place for the songs queued
+    task = KilledOn(GenerateTask(options_from(args)), "song_01")
+    run_catalog(read_catalog(args.songs), out, task, jobs=args.jobs)
     rows = _rows(out)
-    killed = [n for n, r in rows.items() if r["status"] == "failed" and "killed by SIGKILL" in r["error"]]
-    assert len(killed) == 1, rows
-    assert "run the batch again" in rows[killed[0]]["error"]
+    assert rows["song 01.wav"]["status"] == "failed", rows
+    assert "killed by SIGKILL" in rows["song 01.wav"]["error"] and "run the batch again" in rows["song 01.wav"]["error"]
+    assert rows[BAD]["status"] == "failed" and "cannot decode" in rows[BAD]["error"]
     done_first = {n for n, r in rows.items() if r["status"] == "done"}
-    assert len(done_first) == GOOD - 1
-    rerun = subprocess.run(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), capture_output=True, text=True,
-                           timeout=120)
-    assert rerun.returncode == 1, rerun.stderr
+    assert done_first == {f"song {k:02d}.wav" for k in range(GOOD)} - {"song 01.wav"}
+    assert [p.name for p in (out / "song_01").iterdir()] == []  # nothing under a final name
+    assert main(command) == 1  # the same command again
+    assert f"1 danced, {GOOD - 1} already done, 1 failed" in capsys.readouterr().out
     status = _status(out)
     assert {n for n, s in status.items() if s == "skipped"} == done_first
-    assert {n for n, s in status.items() if s == "done"} == set(killed)  # only the missing song danced
+    assert {n for n, s in status.items() if s == "done"} == {"song 01.wav"}  # only the missing song danced
     assert status[BAD] == "failed"
     _assert_same_as_generate(out, reference)
 
@@ -179,19 +203,23 @@ def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted
         songs: Path, reference: dict, tmp_path: Path) -> None:
     out = tmp_path / "out"
     seed = int.from_bytes(os.urandom(4), "little")
-    delay = random.Random(seed).uniform(1.0, 7.0)
+    # a random point of the batch's own progress, whatever the machine's speed: after 0 to 4 of the 11 songs
+    # (from the workers' start to mid-run), then up to half a song's time
+    rng = random.Random(seed)
+    after, delay = rng.randrange(GOOD // 2), rng.uniform(0.0, 0.5)
     run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL, start_new_session=True)
+    _wait_for(run, out, after)
     time.sleep(delay)
     os.killpg(run.pid, signal.SIGKILL)  # the batch and its workers at once, as `kill -9 -PGID` does
-    run.wait()
+    assert run.wait() == -signal.SIGKILL, f"the batch ended before the kill (seed {seed})"
     # whatever was under a final name is whole: the very bytes of the song's file
     for folder in (p for p in out.glob("song_*") if p.is_dir()):
         for p in folder.iterdir():
             if TEMP_MARK not in p.name:
                 assert _files(folder)[p.name] == reference[folder.name][p.name], (p, f"seed {seed}")
     rerun = subprocess.run(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), capture_output=True, text=True,
-                           timeout=180)
+                           timeout=HANG_S)
     assert rerun.returncode == 1, (rerun.stderr, f"seed {seed}")
     assert set(_status(out).values()) <= {"done", "skipped", "failed"}
     assert [n for n, s in _status(out).items() if s == "failed"] == [BAD]
@@ -205,9 +233,7 @@ def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: P
     out = tmp_path / "out"
     run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.monotonic() + 120
-    while _done(out) < 1 and run.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.02)
+    _wait_for(run, out, 1)
     workers = _children(run.pid)
     os.killpg(run.pid, signal.SIGINT)  # what Ctrl-C in its terminal sends
     _stdout, stderr = run.communicate(timeout=30)
@@ -217,10 +243,36 @@ def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: P
     done = {n for n, s in _status(out).items() if s == "done"}
     assert done and [p for p in out.rglob("*") if TEMP_MARK in p.name] == []
     rerun = subprocess.run(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), capture_output=True, text=True,
-                           timeout=120)
+                           timeout=HANG_S)
     assert rerun.returncode == 1, rerun.stderr
     assert {n for n, s in _status(out).items() if s == "skipped"} == done
     _assert_same_as_generate(out, reference)
+
+
+def _stopped_worker(conn: Connection, row: tuple | None) -> None:
+    """A worker still running when the batch stops, which has sent its song's row (`row`) or not (None)."""
+    if row is not None:
+        conn.send(row)
+    time.sleep(HANG_S)
+
+
+def test_a_stop_reports_the_row_a_worker_sent_and_kills_the_workers(tmp_path: Path) -> None:
+    """What Ctrl-C meets when two workers end their first songs together: one row read, the other still in its
+    pipe. That song's files are all written, so the table calls it done, as the next run finds it."""
+    spawn = mp.get_context("spawn")
+    busy = {}
+    for i, row in ((3, {"status": "done", "frames": 95}), (4, None)):
+        ours, theirs = spawn.Pipe()
+        worker = spawn.Process(target=_stopped_worker, args=(theirs, None if row is None else (i, row)))
+        worker.start()
+        theirs.close()
+        song = CatalogSong(f"song {i:02d}.wav", tmp_path / f"song {i:02d}.wav", f"song_{i:02d}")
+        busy[ours] = (worker, (i, song, "request"))
+    assert next(iter(busy)).poll(HANG_S)  # the row is in the pipe, unread
+    ended = []
+    _stop(tmp_path, busy, lambda i, row: ended.append((i, row)))
+    assert ended == [(3, {"status": "done", "frames": 95})]
+    assert [worker.exitcode for worker, _item in busy.values()] == [-signal.SIGKILL] * 2
 
 
 def test_the_csv_gives_each_song_its_settings(songs: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
