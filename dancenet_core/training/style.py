@@ -58,7 +58,7 @@ VALIDATION_WITH_TANGO = {"200": "0.55 (0.50)", "400": "0.50 (0.50)"}
 # window (by song), chroma blanked in half the windows unless said; several runs (training seeds 2020 and 1; the
 # stretched ones also on a 16-core machine's CPU) give their range.
 VALIDATION_METER_TEMPO = {
-    "bumps only (the input before), stretch 12%, 200 steps": "0.50 (0.50)",
+    "bumps only (no metre and tempo columns), stretch 12%, 200 steps": "0.50 (0.50)",
     "stretch 12%, 200 steps": "0.50-0.51 (0.50)",
     "stretch 12%, 400 steps": "0.50 (0.50)",
     "stretch 12%, chroma never blanked, 200 steps": "0.50 (0.50)",
