@@ -20,7 +20,7 @@ from pathlib import Path
 from dancenet_core.data.dance_with_melody import read_manifest
 from dancenet_core.environment import default_data_dir
 from dancenet_core.library.choreography import choreograph
-from dancenet_core.library.match import MatchModel
+from dancenet_core.library.match import MatchModel, frames_of
 from dancenet_core.library.store import MotionLibrary, load_default
 from dancenet_core.music.features import analyze_music
 
@@ -37,13 +37,15 @@ def main() -> None:
     cuts = {}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "unsorted.npz"
-        dataclasses.replace(library, styles=[""] * library.num_clips).save(path)
+        unsorted = dataclasses.replace(library, styles=[""] * library.num_clips)
+        frames_of(unsorted)  # as `dancenet library build` does for a library whose clips name no style
+        unsorted.save(path)
         kept = MotionLibrary.load(path)
         for _ in range(REPEATS):
             for what in times:
                 lib = {"without": library, "again": kept}.get(what) or MotionLibrary.load(path)
                 if what == "computed":
-                    del lib.__dict__["match_frames"]
+                    lib.match_frames = None
                 t = time.perf_counter()
                 dance = choreograph(lib, music, seed=0, end_s=SONG_S, match=None if what == "without" else model)[0]
                 times[what].append(time.perf_counter() - t)

@@ -40,6 +40,7 @@ from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
 from .analysis import ClipAnalysis, analyze_clip
+from .match import frames_of
 from .store import LIBRARY_FPS, MotionLibrary, built_path, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
@@ -221,6 +222,8 @@ def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
+    if not any(library.styles):  # the learned match dances it: its motion features computed once, here
+        frames_of(library)
     path.parent.mkdir(parents=True, exist_ok=True)
     library.save(path)
     return library

@@ -198,6 +198,14 @@ def library_frames(library: MotionLibrary) -> np.ndarray:
     return np.concatenate([motion_frames(pos[a:b], library.fps) for a, b in zip(edges[:-1], edges[1:], strict=True)])
 
 
+def frames_of(library: MotionLibrary) -> np.ndarray:
+    """`library_frames`, from the library's build where it stored them (`MotionLibrary.match_frames`), else computed
+    once and kept with the loaded library (a library built before they were stored)."""
+    if library.match_frames is None:
+        library.match_frames = library_frames(library)
+    return library.match_frames
+
+
 class FigureMatch:
     """How well each figure of a plan fits the song: on each bar, the cosine of the bar's music embedding and the
     embedding of the figure's motion over the clip beats the figure lays on that bar (`fit`); over the whole part,
@@ -209,7 +217,7 @@ class FigureMatch:
     def __init__(self, model: MatchModel, library: MotionLibrary, features: np.ndarray,
                  bar_beats: list[np.ndarray]) -> None:
         self.model, self.library = model, library
-        self.frames = library.match_frames
+        self.frames = frames_of(library)
         self.music = model.embed_music(music_bars(features, bar_beats, model.context))
         song = model.style_probs(self.music).mean(axis=0) if model.style_layer is not None else None
         self.song_style = None if song is None else song / song.max()  # its most probable style: 1

@@ -55,6 +55,10 @@ class MotionLibrary:
     source: list[str]
     fps: float = LIBRARY_FPS
     notes: tuple[str, ...] = ()  # what the build left out, one line each
+    # [N, match.FRAME_DIM] the learned match's motion features of every frame, a forward kinematics pass over the
+    # whole library: the build computes them for a library whose clips name no style (the libraries the match
+    # dances), so that its first dance reads them (`match.frames_of`)
+    match_frames: np.ndarray | None = None
 
     @property
     def num_clips(self) -> int:
@@ -94,15 +98,6 @@ class MotionLibrary:
         """[N]: each frame's largest body-joint step over that joint's 99th percentile (`step_p99`)."""
         return (self.joint_steps / self.step_p99).max(axis=1)
 
-    @cached_property
-    def match_frames(self) -> np.ndarray:
-        """[N, match.FRAME_DIM]: the learned match's motion features of every frame (`match.library_frames`, a
-        forward kinematics pass over the whole library), stored by `save` in a library whose clips name no style,
-        the libraries the match dances, so that their first dance does not compute them."""
-        from .match import library_frames  # the match reads the library: imported here, not at the top
-
-        return library_frames(self)
-
     @classmethod
     def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()
                    ) -> MotionLibrary:
@@ -134,7 +129,7 @@ class MotionLibrary:
         (0.002 rad apart at most) and compresses, for about a third of the bytes; `load` reads either."""
         meta = {"version": LIBRARY_VERSION, "fps": self.fps, "names": self.names, "styles": self.styles,
                 "source": self.source, "notes": list(self.notes)}
-        unsorted = {} if any(self.styles) else {"match_frames": self.match_frames}
+        unsorted = {} if self.match_frames is None else {"match_frames": self.match_frames}
         with atomic_open(path, "wb") as f:
             (np.savez_compressed if compact else np.savez)(
                 f, rotations=self.rotations.astype(np.float16) if compact else self.rotations,
@@ -157,8 +152,8 @@ class MotionLibrary:
                           list(meta["source"]), float(meta["fps"]), tuple(meta["notes"]))
                 # how far the dancers step, measured once at the build (a forward kinematics pass over every frame)
                 lib.__dict__["step_p99"], lib.__dict__["step_ratios"] = z["step_p99"], z["step_ratios"]
-                if "match_frames" in z:  # a library without styles: the match's features, from its build
-                    lib.__dict__["match_frames"] = z["match_frames"]
+                if "match_frames" in z:
+                    lib.match_frames = z["match_frames"]
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise ValueError(f"{path}: not a motion library ({e})") from e
         n, b = len(lib.rotations), len(lib.beats)
@@ -167,7 +162,7 @@ class MotionLibrary:
                 or not len(lib.names) == len(lib.confidence) == len(lib.source)
                 or lib.step_ratios.shape != (n,) or lib.step_p99.shape != (BODY_JOINTS,)
                 or lib.features.shape != (b, FEATURE_DIM) or not len(lib.beat_clip) == len(lib.downbeat) == b
-                or len(lib.__dict__.get("match_frames", lib.rotations)) != n):
+                or (lib.match_frames is not None and len(lib.match_frames) != n)):
             raise ValueError(f"{path}: a motion library whose arrays do not fit each other")
         return lib
 
