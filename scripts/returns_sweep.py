@@ -9,7 +9,9 @@ without music) dance `--takes` takes of each song, and each row rewrites the sam
 - joins alone: every copy's joins and placement, its frames the same bars of another take of the same song (takes
   beyond the measured ones, never measured themselves);
 - returns from another take: the copy as the default makes it (bar against bar, joins, placement, the real-time
-  limit), its frames read from another take: everything a return does but repeat frames within the measured set.
+  limit), its frames read from another take: everything a return does but repeat frames within the measured set;
+- copied 2 bars off: each copy read from its own dance 2 bars later than its source (2 bars earlier where that would
+  read what it writes): as much of the dance repeated, but not where the music returns.
 
 Also prints each song's form (its sections and the bars the returns copy) and each row's figures per pair of takes
 (the take-to-take spread; FIDs of a pair stand on a quarter of the segments, so they sit higher than the row's).
@@ -76,24 +78,31 @@ def main() -> int:
     styles = [p.style for p in val for _ in range(takes)]
     song_beats = [beats[p.seq] for p in val for _ in range(takes)]
     measured = [i * lend * takes + k for i in range(len(val)) for k in range(takes)]
-    sample, bar_map = returns._sample, returns._bar_map
+    sample, bar_map, copies = returns._sample, returns._bar_map, returns._copies
+
+    def off(form, mode, section_modes):
+        return [(a, e, s + 2 if s + 2 + e - a <= a else max(0, s - 2), h) for a, e, s, h in copies(form, mode,
+                                                                                                    section_modes)]
 
     def rewritten(motion, donor, seq, how):
         if how == "anew":
             return motion
         form, start = forms[seq]
         try:
-            if how != "repeat":
+            if how == "copied 2 bars off":
+                returns._copies = off
+            elif how != "repeat":
                 returns._sample = lambda _motion, frames: sample(donor, frames)
             if how == "joins alone":
                 returns._bar_map = lambda frames, _target, _source: frames
             return returns.dance_returns(motion, form, start, "repeat")[0]
         finally:
-            returns._sample, returns._bar_map = sample, bar_map
+            returns._sample, returns._bar_map, returns._copies = sample, bar_map, copies
 
     out = {}
     for engine, made in dances.items():
-        hows = ("anew", "repeat", "joins alone", "returns from another take")[:4 if lend == 2 else 2]
+        hows = ("anew", "repeat", "joins alone", "returns from another take", "copied 2 bars off")[:5 if lend == 2
+                                                                                                     else 2]
         rows = [DanceSet(how, how, [rewritten(made[i], made[(i + takes) % len(made)], seq, how)
                                     for i, seq in zip(measured, songs, strict=True)], styles, song_beats, {}, songs)
                 for how in hows]
