@@ -2,6 +2,7 @@
 after installing it into a fresh Blender.
 
     .venv/bin/python bench/addon_first_click.py [--dist DIR] [--pythons .venv/bin/python .venv-blender52/bin/python]
+        [--repeats N]
 
 Builds the zips as `python build_addon.py` does (or reads them from --dist) and reports, per platform, the zip,
 what Blender unpacks and keeps (the add-on and every wheel) and what it installs from the wheels for each
@@ -10,7 +11,9 @@ Python, unpacked. Then, for each interpreter given (a venv with bpy), installs t
 times the first Generate Dance of a 12-s sound strip of the example song from scratch: clicked at once (the
 warm-up thread the add-on starts when enabled still running) and clicked once the warm-up has finished, each
 onto a new rig and onto a Rigify rig generated from the human metarig (its controls keyed, `rigcontrols`; the
-rig is made before the clock starts). The installed size there is measured on disk. Prints JSON.
+rig is made before the clock starts); --repeats N clicks at once on the Rigify rig N times, each in a new
+Blender, with the 1-minute load average after each (the machine's other work slows a click). The installed size
+there is measured on disk. Prints JSON.
 """
 
 from __future__ import annotations
@@ -134,32 +137,44 @@ def _pt_files(archive: Path) -> list[str]:
     return found
 
 
-def first_clicks(archive: Path) -> dict:
+def _click(tmp: Path, fresh: Path, archive: Path, case: str, wait: str, rig: str) -> dict:
+    """One first Generate Dance in a scratch Blender of its own (HOME, user folders, caches: all new)."""
+    scratch = Path(tmp) / case
+    user = scratch / "blender"
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_USER_", "DANCENET_", "NUMBA_"))}
+    env |= {"HOME": str(scratch / "home"), "BLENDER_USER_RESOURCES": str(user)}
+    (scratch / "home").mkdir(parents=True)
+    run = subprocess.run([sys.executable, "-I", "-S", "-c", CHILD, str(fresh), str(archive), str(SONG), wait, rig],
+                         cwd=scratch, env=env, capture_output=True, text=True, timeout=900)  # fmt: skip
+    if run.returncode:
+        raise SystemExit(f"{case}: {run.stderr.strip().splitlines()[-1:]}")
+    line = next(x for x in run.stdout.splitlines() if x.startswith("{"))
+    out = {k: round(v, 2) if isinstance(v, float) else v for k, v in json.loads(line).items()}
+    ext = user / "extensions"
+    out["on_disk_mb"] = {
+        "extension_folder": _folder_mb(ext / "user_default" / "dancenet"),
+        "installed_packages": _folder_mb(ext / ".local"),
+        "caches": _folder_mb(ext / ".user"),
+    }
+    out["load_average_1min"] = round(os.getloadavg()[0], 2)
+    return out
+
+
+def first_clicks(archive: Path, repeats: int) -> dict:
     """This interpreter's bpy: the first Generate Dance after a fresh install, clicked at once and after the
-    warm-up, each in its own scratch Blender; and what the install put on disk."""
+    warm-up, each in its own scratch Blender; and what the install put on disk. The Rigify rig clicked at once
+    `repeats` times in all (each in a new scratch Blender), since that is the case a busy machine varies most."""
     out: dict = {"python": platform.python_version()}
     with tempfile.TemporaryDirectory(prefix="dancenet-first-click-") as tmp:
         fresh = _build_addon().fresh_bpy(Path(tmp) / "fresh")
         cases = (("clicked_at_once", "0", "new"), ("clicked_after_warm_up", "1", "new"),
                  ("rigify_clicked_at_once", "0", "rigify"), ("rigify_clicked_after_warm_up", "1", "rigify"))
         for case, wait, rig in cases:
-            scratch = Path(tmp) / case
-            user = scratch / "blender"
-            env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_USER_", "DANCENET_", "NUMBA_"))}
-            env |= {"HOME": str(scratch / "home"), "BLENDER_USER_RESOURCES": str(user)}
-            (scratch / "home").mkdir(parents=True)
-            run = subprocess.run([sys.executable, "-I", "-S", "-c", CHILD, str(fresh), str(archive), str(SONG), wait,
-                                  rig], cwd=scratch, env=env, capture_output=True, text=True, timeout=900)  # fmt: skip
-            if run.returncode:
-                raise SystemExit(f"{case}: {run.stderr.strip().splitlines()[-1:]}")
-            line = next(x for x in run.stdout.splitlines() if x.startswith("{"))
-            out[case] = {k: round(v, 2) if isinstance(v, float) else v for k, v in json.loads(line).items()}
-            ext = user / "extensions"
-            out[case]["on_disk_mb"] = {
-                "extension_folder": _folder_mb(ext / "user_default" / "dancenet"),
-                "installed_packages": _folder_mb(ext / ".local"),
-                "caches": _folder_mb(ext / ".user"),
-            }
+            out[case] = _click(Path(tmp), fresh, archive, case, wait, rig)
+        again = [_click(Path(tmp), fresh, archive, f"rigify_again_{i}", "0", "rigify") for i in range(repeats - 1)]
+        out["rigify_clicked_at_once_all_s"] = [c["first_generate_s"] for c in (out["rigify_clicked_at_once"], *again)]
+        out["rigify_clicked_at_once_load_averages"] = [
+            c["load_average_1min"] for c in (out["rigify_clicked_at_once"], *again)]
     return out
 
 
@@ -168,10 +183,12 @@ def main() -> int:
     p.add_argument("--dist", type=Path, help="folder with the zips already built (default: build them now)")
     p.add_argument("--pythons", nargs="+", default=[str(REPO / ".venv/bin/python")],
                    help="interpreters of venvs with bpy, one first click each (default: .venv)")
+    p.add_argument("--repeats", type=int, default=1,
+                   help="first clicks at once on the Rigify rig per interpreter, each in a new Blender (default 1)")
     p.add_argument("--one", type=Path, help=argparse.SUPPRESS)  # internal: first clicks in this interpreter
     args = p.parse_args()
     if args.one:
-        print(json.dumps(first_clicks(args.one)))
+        print(json.dumps(first_clicks(args.one, args.repeats)))
         return 0
     t = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="dancenet-dist-") as tmp:
@@ -181,7 +198,8 @@ def main() -> int:
         archive = next(dist.glob("dancenet-*-linux_x64.zip"))
         result: dict = {"sizes": sizes(dist), "strip_s": STRIP_S, "first_click": {}}
         for python in args.pythons:
-            run = subprocess.run([python, __file__, "--one", str(archive)], capture_output=True, text=True)
+            run = subprocess.run([python, __file__, "--one", str(archive), "--repeats", str(args.repeats)],
+                                 capture_output=True, text=True)
             if run.returncode:
                 raise SystemExit(f"{python}: {run.stderr.strip()[-2000:]}")
             one = json.loads(run.stdout.strip().splitlines()[-1])

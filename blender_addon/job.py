@@ -49,7 +49,7 @@ class Job:
 
     def _run(self) -> None:
         try:
-            with warming.LOCK:  # never beside a warm-up step (warming.py)
+            with warming.generating():  # never beside a warm-up step nor its compile (warming.py)
                 self.result = self._work(self._progress, self._cancel.is_set)
         except Exception as e:  # reported on the main thread; a cancelled job's error is dropped
             self.error = e

@@ -206,9 +206,9 @@ def prepare_redo(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None, secti
 
 def generate_now(context: bpy.types.Context, plan: Plan, generator: Generator) -> Applied:
     """Generate and apply on the calling thread: scripts, background mode, tests (never beside a warm-up step:
-    `warming.LOCK`, as a worker's job)."""
+    `warming.generating`, as a worker's job)."""
     try:
-        with warming.LOCK:
+        with warming.generating():
             result = generator(plan.request)
     except DanceNetError:
         raise

@@ -4,12 +4,14 @@ by a process of its own meanwhile: dancenet_core/warmup.py) and the lock a Gener
 Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not made to race
 one another, and a pytest process running Generate Dance beside a warm-up ended in a segmentation fault. Each
 warm-up step and each generation hold `LOCK`, so a click during the warm-up waits for its current step and
-then finds that work done.
+then finds that work done; a generation also stops the compiling process while it runs (`generating`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
+from collections.abc import Iterator
 
 LOCK = threading.Lock()
 _stop = threading.Event()
@@ -26,6 +28,17 @@ def _warm_up(stop: threading.Event) -> None:
         warm_up(stop.is_set, LOCK)
     except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
         print(f"DanceNet: warm-up stopped: {e}")
+
+
+@contextlib.contextmanager
+def generating() -> Iterator[None]:
+    """What a generation holds while it runs: the warm-up's compiling process stopped, so that the click has the
+    CPU (its kernels run their numpy twins meanwhile), and then `LOCK`, so that it never runs beside a warm-up
+    step. Stopped first: the wait for a warm-up step under way goes faster without it too."""
+    from dancenet_core.warmup import paused
+
+    with paused(), LOCK:
+        yield
 
 
 def start() -> None:

@@ -8,6 +8,10 @@ kernels' numpy twins (the same numbers) and waits for no compile; each kernel is
 soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the kernels are
 loaded here, a step at a time (compiled here if the process failed).
 
+While a Generate Dance runs (`paused`), that process is stopped and continued after: on a machine with few cores
+its compile took the CPU from the click (a first click on a Rigify rig took 3-10 s beside it, 5 s or less without
+it), and the click needs none of its work.
+
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
 they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
 are imported inside the steps, so that the compiling process starts before this one imports them."""
@@ -15,11 +19,12 @@ are imported inside the steps, so that the compiling process starts before this 
 from __future__ import annotations
 
 import contextlib
+import signal
 import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager
 from typing import IO, Any, NamedTuple
 
@@ -94,6 +99,50 @@ class _Compiling(NamedTuple):
     errors: IO[bytes]
 
 
+# POSIX's stop and continue; where there are none (Windows) the process runs on beside a click, at below-normal
+# priority (its creation flags), which the scheduler puts after the click's thread: correct, only slower.
+_STOP, _CONT = getattr(signal, "SIGSTOP", None), getattr(signal, "SIGCONT", None)
+_pause = threading.Lock()  # guards the two below
+_running: subprocess.Popen | None = None  # the compiling process until it has been waited for
+_pausers = 0  # generations under way that asked for it to be stopped
+
+
+def _signal(sig: int | None) -> None:
+    """Send `sig` to the compiling process, if one runs (Popen.send_signal skips one already waited for, so a
+    process id used again by another process is never signalled). Caller holds `_pause`."""
+    if _running is not None and sig is not None:
+        with contextlib.suppress(ProcessLookupError):  # ended meanwhile, not yet waited for
+            _running.send_signal(sig)
+
+
+@contextlib.contextmanager
+def paused() -> Iterator[None]:
+    """The compiling process stopped while the body runs (a Generate Dance: it gets the CPU that process would
+    take), continued after, however the body ends. Nested or concurrent bodies continue it once the last ends;
+    a process started meanwhile starts stopped."""
+    global _pausers
+    with _pause:
+        _pausers += 1
+        if _pausers == 1:
+            _signal(_STOP)
+    try:
+        yield
+    finally:
+        with _pause:
+            _pausers -= 1
+            if _pausers == 0:
+                _signal(_CONT)
+
+
+def _track(child: subprocess.Popen | None) -> None:
+    """Make `child` the process `paused` stops (None: none any more), stopped at once if a pause is under way."""
+    global _running
+    with _pause:
+        _running = child
+        if _pausers:
+            _signal(_STOP)
+
+
 def _compile_elsewhere() -> _Compiling:
     """This interpreter (in Blender, Blender's own Python) on this process's import path, isolated from the
     user's Python settings but for this process's bytecode policy (-I drops PYTHONDONTWRITEBYTECODE, and an
@@ -104,6 +153,7 @@ def _compile_elsewhere() -> _Compiling:
     child = subprocess.Popen([sys.executable, "-I", *no_pyc, "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
                              stdout=subprocess.PIPE, stderr=errors, text=True,
                              creationflags=getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0))  # fmt: skip
+    _track(child)
     threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
     return _Compiling(child, errors)
 
@@ -116,9 +166,11 @@ def _mark_cached(names: IO[str]) -> None:
 
 
 def _finished(compiling: _Compiling, cancelled: Callable[[], bool]) -> bool:
-    """Wait for the compiling process; False (and the process stopped) if cancelled meanwhile."""
+    """Wait for the compiling process; False (and the process ended) if cancelled meanwhile (a kill ends a
+    paused process too)."""
     child = compiling.process
-    with compiling.errors:
+    with compiling.errors, contextlib.ExitStack() as untrack:
+        untrack.callback(_track, None)
         while not cancelled():
             try:
                 child.wait(timeout=POLL_S)

@@ -135,3 +135,39 @@ def click_song(path: Path, seconds: float, bpm: float = 120.0, bar: int = 0, rat
     y = 0.1 * np.sin(2 * np.pi * 220 * t) + 0.5 * loud * (np.mod(t, 60.0 / bpm) < 0.01)
     sf.write(path, y.astype(np.float32), rate, subtype=subtype)
     return path
+
+
+class CountingChild:
+    """A stand-in for the warm-up's compiling process (dancenet_core.warmup._CHILD): it counts into a file for a
+    minute, so a test sees whether it runs or is stopped."""
+
+    def __init__(self, folder: Path) -> None:
+        self.file = folder / "count"
+        self.code = ("import time\nfor i in range(3000):\n"
+                     f"    open({str(self.file)!r}, 'w').write(str(i))\n    time.sleep(0.02)")  # fmt: skip
+
+    def count(self) -> int:
+        try:
+            return int(self.file.read_text() or -1)
+        except FileNotFoundError:
+            return -1
+
+    def frozen(self, for_s: float = 0.4) -> bool:
+        """No count for `for_s` (after a moment for a signal in flight to land)."""
+        import time
+
+        time.sleep(0.1)
+        before = self.count()
+        time.sleep(for_s)
+        return self.count() == before
+
+    def counts(self, within_s: float = 20.0) -> bool:
+        """A new count within `within_s` (generous: a loaded machine may start it slowly)."""
+        import time
+
+        before, end = self.count(), time.monotonic() + within_s
+        while time.monotonic() < end:
+            if self.count() > before:
+                return True
+            time.sleep(0.02)
+        return False

@@ -4,9 +4,14 @@ with the types a real run gives them: a Generate Dance after it compiles nothing
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+
+from tests.made_up import CountingChild
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -86,3 +91,71 @@ def test_a_compiling_process_that_writes_much_to_stderr_is_waited_for(monkeypatc
         waiting.join(10)
     assert not blocked
     assert "compiling the kernels apart failed (the last line)" in capsys.readouterr().out
+
+
+needs_stop = pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="no SIGSTOP here: the process runs on at "
+                                                                       "below-normal priority instead")
+
+
+@pytest.fixture
+def counting(tmp_path, monkeypatch):
+    """The compiling process replaced by one that counts; ended (killed, waited for) after the test."""
+    from dancenet_core import warmup
+
+    child = CountingChild(tmp_path)
+    monkeypatch.setattr(warmup, "_CHILD", child.code)
+    started = []
+    real = warmup._compile_elsewhere
+    monkeypatch.setattr(warmup, "_compile_elsewhere", lambda: started.append(real()) or started[-1])
+    yield child, started
+    for compiling in started:
+        if compiling.process.returncode is None:
+            warmup._finished(compiling, lambda: True)
+
+
+@needs_stop
+def test_a_generation_stops_the_compiling_process_and_continues_it_after(counting) -> None:
+    from dancenet_core import warmup
+
+    child, started = counting
+    warmup._compile_elsewhere()
+    assert child.counts()
+    with warmup.paused():
+        assert child.frozen()
+        with warmup.paused():  # a second one under way: the first to end does not continue it
+            pass
+        assert child.frozen()
+    assert child.counts()
+
+
+@needs_stop
+def test_a_compiling_process_started_during_a_generation_starts_stopped(counting) -> None:
+    from dancenet_core import warmup
+
+    child, started = counting
+    with warmup.paused():
+        warmup._compile_elsewhere()
+        assert child.frozen(1.0)
+    assert child.counts()
+
+
+@needs_stop
+def test_a_warm_up_cancelled_during_a_generation_ends_its_stopped_process(counting) -> None:
+    """Disabling the add-on while a generation runs: the stopped process is killed, not left stopped for ever,
+    and continuing it after is harmless."""
+    from dancenet_core import warmup
+
+    child, started = counting
+    with warmup.paused():
+        compiling = warmup._compile_elsewhere()
+        assert warmup._finished(compiling, lambda: True) is False
+        assert compiling.process.returncode is not None
+    assert warmup._running is None
+
+
+def test_a_generation_without_a_compiling_process_runs_as_ever() -> None:
+    from dancenet_core import warmup
+
+    with warmup.paused():
+        assert warmup._running is None
+    assert warmup._pausers == 0

@@ -3,13 +3,15 @@ reports a form, as generate_dance does)."""
 
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import pytest
 from doubles import make_fake_generator, write_song
-from scene_helpers import bpy, generate, panel_screenshot, snapshot
+from scene_helpers import bpy, fcurves_of, generate, panel_screenshot, snapshot
 
 from dancenet_core.music.form import Phrase, Section, SongForm
-from tests.made_up import arranged_training_song
+from tests.made_up import CountingChild, arranged_training_song
 
 FORM = SongForm(np.array([0.0, 0.5, 1.0, 1.5, 2.0]), (Phrase(0, None, 1.0), Phrase(2, 0, 0.9)),
                 (Section("A", 1, 0.0, 1.0, 0, 2, 1.0), Section("A", 2, 1.0, 2.0, 2, 2, 0.9)))
@@ -148,3 +150,45 @@ def test_a_generation_on_the_calling_thread_waits_for_the_warm_up_step(scene, ad
         addon.warming.LOCK.release()
     worker.join(30)
     assert started.is_set() and not worker.is_alive()
+
+
+def _keys() -> list[bytes]:
+    """Every key of every action, as bytes."""
+    keys = []
+    for action in sorted(bpy.data.actions, key=lambda a: a.name):
+        for curve in sorted(fcurves_of(action), key=lambda c: (c.data_path, c.array_index)):
+            co = np.empty(len(curve.keyframe_points) * 2, np.float32)
+            curve.keyframe_points.foreach_get("co", co)
+            keys.append(co.tobytes())
+    return keys
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="no SIGSTOP here: the compile runs on at below-normal "
+                                                           "priority beside the click")
+def test_a_generation_stops_the_warm_ups_compile_while_it_runs(scene, addon, song, tmp_path, monkeypatch):
+    """A first click beside the warm-up: its compiling process is stopped while the dance is made (the click has
+    the CPU) and continued after, and the dance is the same bytes as one made with no warm-up running."""
+    from dancenet_core import warmup
+
+    child = CountingChild(tmp_path)
+    fake = make_fake_generator()
+    seen = []
+
+    def generator(request, progress=None, should_cancel=None):
+        seen.append(child.frozen())
+        return fake(request, progress, should_cancel)
+
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: generator)
+    assert generate(scene, song, seed=1) == {"FINISHED"}
+    alone = _keys()
+    monkeypatch.setattr(warmup, "_CHILD", child.code)
+    compiling = warmup._compile_elsewhere()
+    try:
+        assert child.counts()
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        assert generate(bpy.context.scene, song, seed=1) == {"FINISHED"}
+        assert seen[-1]  # stopped while the dance was made
+        assert child.counts()  # and counting again after
+        assert _keys() == alone and alone
+    finally:
+        warmup._finished(compiling, lambda: True)
