@@ -18,6 +18,9 @@ from typing import Any
 
 _deferred = False
 _cached: set[Any] = set()  # kernels another process has written to numba's on-disk cache: a call loads them
+_coming: set[Any] = set()  # kernels another process is compiling now, which a call waits for (`expect`)
+_arrived = threading.Condition()  # guards the two sets; told when either changes
+WAIT_S = 30.0  # the longest a call waits for a coming kernel (a process that hangs) before running its twin
 _here = threading.local()  # .compiling: this thread may compile (or load) kernels though they are deferred
 
 
@@ -42,12 +45,41 @@ def compiling() -> Iterator[None]:
         _here.compiling = False
 
 
+def expect(*kernels: Any) -> None:
+    """Another process is compiling these now: a call waits for them rather than running their twins (where
+    the compile is quicker than the twin: the music networks' twins take ~4 s a minute of song, their compile
+    ~2 s, and the compiling process started before the click)."""
+    with _arrived:
+        _coming.update(kernels)
+        _arrived.notify_all()
+
+
+def expect_none() -> None:
+    """No kernel is coming any more (the compiling process has ended, however): calls waiting run twins."""
+    with _arrived:
+        _coming.clear()
+        _arrived.notify_all()
+
+
+def coming() -> bool:
+    """Whether a call may wait for a kernel another process is compiling."""
+    with _arrived:
+        return bool(_coming)
+
+
 def mark_cached(*kernels: Any) -> None:
     """These kernels are in numba's on-disk cache now (the warm-up's compiling process wrote them)."""
-    _cached.update(kernels)
+    with _arrived:
+        _cached.update(kernels)
+        _coming.difference_update(kernels)
+        _arrived.notify_all()
 
 
 def pick(kernel: Any, twin: Any) -> Any:
     """`kernel` (a numba dispatcher) where it is compiled in this process, in numba's cache or may be compiled
-    now, else `twin`."""
-    return kernel if kernel.signatures or kernel in _cached or may_compile() else twin
+    now, or once another process has compiled it where one is compiling it (`expect`), else `twin`."""
+    if kernel.signatures or may_compile():
+        return kernel
+    with _arrived:
+        _arrived.wait_for(lambda: kernel not in _coming, WAIT_S)
+        return kernel if kernel in _cached else twin

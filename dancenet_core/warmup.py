@@ -8,9 +8,11 @@ kernels' numpy twins (the same numbers) and waits for no compile; each kernel is
 soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the kernels are
 loaded here, a step at a time (compiled here if the process failed).
 
-While a Generate Dance runs (`paused`), that process is stopped and continued after: on a machine with few cores
-its compile took the CPU from the click (a first click on a Rigify rig took 3-10 s beside it, 5 s or less without
-it), and the click needs none of its work.
+A click waits for the music analysis' kernels from that process rather than running their twins (the twins
+take ~4 s for a minute of song; the process, started when the add-on was enabled, compiles both in ~2 s), and
+while a Generate Dance runs that process is stopped once it has written them (`paused`), continued after: on a
+machine with few cores its compile took the CPU from the click (a first click on a Rigify rig took 3-10 s
+beside it), and the sampler's twin takes a fraction of a second for a short dance.
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
 they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
@@ -77,6 +79,9 @@ def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:
     }
 
 
+WAITED = ("networks", "beat decode")  # the kernels a click waits for (above), compiled first
+
+
 def compile_kernels() -> None:
     """Compile every kernel into numba's on-disk cache, printing each one's name once it is there (what the
     process `warm_up` starts runs)."""
@@ -85,8 +90,9 @@ def compile_kernels() -> None:
         print(name, flush=True)
 
 
-# Niced: a Generate Dance clicked meanwhile (its twins) comes first on a busy machine.
-_CHILD = ("import os, sys; sys.path[:0] = sys.argv[1:]; hasattr(os, 'nice') and os.nice(10); "
+# Not niced where a click can stop it (a click waits for its first kernels, which a niced process on a busy
+# machine would be slow to write); at below-normal priority elsewhere (its creation flags).
+_CHILD = ("import sys; sys.path[:0] = sys.argv[1:]; "
           "from dancenet_core.warmup import compile_kernels; compile_kernels()")
 POLL_S = 0.2  # how often the wait for that process looks at `cancelled`
 
@@ -107,9 +113,11 @@ _running: subprocess.Popen | None = None  # the compiling process until it has b
 _pausers = 0  # generations under way that asked for it to be stopped
 
 
-def _signal(sig: int | None) -> None:
-    """Send `sig` to the compiling process, if one runs (Popen.send_signal skips one already waited for, so a
-    process id used again by another process is never signalled). Caller holds `_pause`."""
+def _steer() -> None:
+    """Stop the compiling process while a generation runs and no kernel it waits for is still coming; else let
+    it run (Popen.send_signal skips a process already waited for, so a process id used again by another process
+    is never signalled; a stop or a continue sent twice does nothing more). Caller holds `_pause`."""
+    sig = _STOP if _pausers and not jit.coming() else _CONT
     if _running is not None and sig is not None:
         with contextlib.suppress(ProcessLookupError):  # ended meanwhile, not yet waited for
             _running.send_signal(sig)
@@ -118,29 +126,27 @@ def _signal(sig: int | None) -> None:
 @contextlib.contextmanager
 def paused() -> Iterator[None]:
     """The compiling process stopped while the body runs (a Generate Dance: it gets the CPU that process would
-    take), continued after, however the body ends. Nested or concurrent bodies continue it once the last ends;
-    a process started meanwhile starts stopped."""
+    take) once it has written the kernels the body may wait for, continued after, however the body ends.
+    Nested or concurrent bodies continue it once the last ends; a process started meanwhile is stopped too."""
     global _pausers
     with _pause:
         _pausers += 1
-        if _pausers == 1:
-            _signal(_STOP)
+        _steer()
     try:
         yield
     finally:
         with _pause:
             _pausers -= 1
-            if _pausers == 0:
-                _signal(_CONT)
+            _steer()
 
 
 def _track(child: subprocess.Popen | None) -> None:
-    """Make `child` the process `paused` stops (None: none any more), stopped at once if a pause is under way."""
+    """Make `child` the process `paused` stops (None: none any more), stopped at once if a pause is under way
+    and no kernel is coming from it."""
     global _running
     with _pause:
         _running = child
-        if _pausers:
-            _signal(_STOP)
+        _steer()
 
 
 def _compile_elsewhere() -> _Compiling:
@@ -153,16 +159,25 @@ def _compile_elsewhere() -> _Compiling:
     child = subprocess.Popen([sys.executable, "-I", *no_pyc, "-c", _CHILD, *sys.path], stdin=subprocess.DEVNULL,
                              stdout=subprocess.PIPE, stderr=errors, text=True,
                              creationflags=getattr(subprocess, "BELOW_NORMAL_PRIORITY_CLASS", 0))  # fmt: skip
+    kernels = _kernels()
+    jit.expect(*(kernel for name in WAITED for kernel in kernels[name][1]))
     _track(child)
     threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
     return _Compiling(child, errors)
 
 
 def _mark_cached(names: IO[str]) -> None:
+    """Mark each kernel cached as the process names it (and stop the process if a generation waits no more for
+    it); once it has ended, however, nothing is coming from it."""
     kernels = _kernels()
-    for line in names:
-        if line.strip() in kernels:
-            jit.mark_cached(*kernels[line.strip()][1])
+    try:
+        for line in names:
+            if line.strip() in kernels:
+                jit.mark_cached(*kernels[line.strip()][1])
+                with _pause:
+                    _steer()
+    finally:
+        jit.expect_none()
 
 
 def _finished(compiling: _Compiling, cancelled: Callable[[], bool]) -> bool:

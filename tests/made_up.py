@@ -139,12 +139,20 @@ def click_song(path: Path, seconds: float, bpm: float = 120.0, bar: int = 0, rat
 
 class CountingChild:
     """A stand-in for the warm-up's compiling process (dancenet_core.warmup._CHILD): it counts into a file for a
-    minute, so a test sees whether it runs or is stopped."""
+    minute, so a test sees whether it runs or is stopped, and names the kernels a click waits for (as written to
+    numba's cache) once `release` is called."""
 
     def __init__(self, folder: Path) -> None:
-        self.file = folder / "count"
-        self.code = ("import time\nfor i in range(3000):\n"
-                     f"    open({str(self.file)!r}, 'w').write(str(i))\n    time.sleep(0.02)")  # fmt: skip
+        self.file, self.go = folder / "count", folder / "release"
+        self.code = ("import os, time\nfor i in range(3000):\n"
+                     f"    open({str(self.file)!r}, 'w').write(str(i))\n"
+                     f"    if os.path.exists({str(self.go)!r}) and not os.path.exists({str(self.go)!r} + 'd'):\n"
+                     f"        open({str(self.go)!r} + 'd', 'w').close()\n"
+                     "        print('networks', flush=True)\n        print('beat decode', flush=True)\n"
+                     "    time.sleep(0.02)")  # fmt: skip
+
+    def release(self) -> None:
+        self.go.touch()
 
     def count(self) -> int:
         try:

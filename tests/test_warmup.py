@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -119,6 +120,7 @@ def test_a_generation_stops_the_compiling_process_and_continues_it_after(countin
 
     child, started = counting
     warmup._compile_elsewhere()
+    child.release()  # the kernels a click waits for are written
     assert child.counts()
     with warmup.paused():
         assert child.frozen()
@@ -129,10 +131,25 @@ def test_a_generation_stops_the_compiling_process_and_continues_it_after(countin
 
 
 @needs_stop
-def test_a_compiling_process_started_during_a_generation_starts_stopped(counting) -> None:
+def test_a_generation_lets_the_process_run_until_the_kernels_it_waits_for_are_written(counting) -> None:
     from dancenet_core import warmup
 
     child, started = counting
+    warmup._compile_elsewhere()
+    with warmup.paused():
+        assert child.counts()  # the analysis' kernels still coming: it runs
+        child.release()
+        assert child.frozen()  # written: stopped at once
+    assert child.counts()
+
+
+@needs_stop
+def test_a_compiling_process_started_during_a_generation_starts_stopped(counting, monkeypatch) -> None:
+    """Where no kernel is waited for from it."""
+    from dancenet_core import warmup
+
+    child, started = counting
+    monkeypatch.setattr(warmup, "WAITED", ())
     with warmup.paused():
         warmup._compile_elsewhere()
         assert child.frozen(1.0)
@@ -142,15 +159,20 @@ def test_a_compiling_process_started_during_a_generation_starts_stopped(counting
 @needs_stop
 def test_a_warm_up_cancelled_during_a_generation_ends_its_stopped_process(counting) -> None:
     """Disabling the add-on while a generation runs: the stopped process is killed, not left stopped for ever,
-    and continuing it after is harmless."""
-    from dancenet_core import warmup
+    and continuing it after is harmless; nothing is coming from it any more."""
+    from dancenet_core import jit, warmup
 
     child, started = counting
+    child.release()
     with warmup.paused():
         compiling = warmup._compile_elsewhere()
         assert warmup._finished(compiling, lambda: True) is False
         assert compiling.process.returncode is not None
     assert warmup._running is None
+    deadline = time.monotonic() + 10
+    while jit.coming() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not jit.coming()
 
 
 def test_a_generation_without_a_compiling_process_runs_as_ever() -> None:
@@ -159,3 +181,31 @@ def test_a_generation_without_a_compiling_process_runs_as_ever() -> None:
     with warmup.paused():
         assert warmup._running is None
     assert warmup._pausers == 0
+
+
+class _Kernel:
+    signatures: list = []  # never compiled here
+
+
+def test_a_call_waits_for_a_kernel_that_is_coming_and_runs_the_twin_once_none_is(monkeypatch) -> None:
+    import threading
+
+    from dancenet_core import jit
+
+    monkeypatch.setattr(jit, "_deferred", True)
+    coming, never, twin = _Kernel(), _Kernel(), object()
+    jit.expect(coming, never)
+    picked = []
+    waiter = threading.Thread(target=lambda: picked.append(jit.pick(coming, twin)))
+    waiter.start()
+    waiter.join(0.3)
+    assert waiter.is_alive() and not picked  # waits for it
+    jit.mark_cached(coming)
+    waiter.join(10)
+    assert picked == [coming]
+    waiter = threading.Thread(target=lambda: picked.append(jit.pick(never, twin)))
+    waiter.start()
+    jit.expect_none()  # the process ended without writing it
+    waiter.join(10)
+    assert picked == [coming, twin]
+    assert jit.pick(_Kernel(), twin) is twin  # nothing coming: the twin at once

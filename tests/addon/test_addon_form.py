@@ -183,6 +183,7 @@ def test_a_generation_stops_the_warm_ups_compile_while_it_runs(scene, addon, son
     alone = _keys()
     monkeypatch.setattr(warmup, "_CHILD", child.code)
     compiling = warmup._compile_elsewhere()
+    child.release()  # the kernels a click would wait for are written
     try:
         assert child.counts()
         bpy.ops.wm.read_factory_settings(use_empty=True)
