@@ -2,17 +2,17 @@
 numba kernels (compiled, or read from numba's on-disk cache) and the shipped weights. The Blender add-on runs
 `warm_up` on a thread of its own when it is enabled, so that a click later does not spend its time on them.
 
-Where kernels are deferred (dancenet_core.jit: the add-on), a Python process of its own, started first and
-niced, compiles them into numba's cache while this one imports and loads the rest. A click meanwhile runs the
-kernels' numpy twins (the same numbers) and waits for no compile; each kernel is used from numba's cache as
-soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the kernels are
-loaded here, a step at a time (compiled here if the process failed).
+Where kernels are deferred (dancenet_core.jit: the add-on), a Python process of its own, started first,
+compiles them into numba's cache while this one imports and loads the rest; each kernel is used from numba's
+cache as soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the
+kernels are loaded here, a step at a time (compiled here if the process failed).
 
-A click waits for the music analysis' kernels from that process rather than running their twins (the twins
-take ~4 s for a minute of song; the process, started when the add-on was enabled, compiles both in ~2 s), and
-while a Generate Dance runs that process is stopped once it has written them (`paused`), continued after: on a
-machine with few cores its compile took the CPU from the click (a first click on a Rigify rig took 3-10 s
-beside it), and the sampler's twin takes a fraction of a second for a short dance.
+A click meanwhile waits for the music analysis' kernels from that process rather than running their numpy
+twins (the same numbers; the twins take ~4 s for a minute of song, the process compiles both in ~2 s and
+started when the add-on was enabled), and runs the sampler's twin (a fraction of a second for a short dance).
+While a Generate Dance runs, that process is stopped once it has written the analysis' kernels (`paused`) and
+continued after: on a machine with few cores its compile took the CPU from the click (a first click on a
+Rigify rig took 3-10 s beside it).
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
 they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
