@@ -1,4 +1,4 @@
-"""The extension as a new user meets it (issue 27 item 4): its size per platform, and the first Generate Dance
+"""The extension as a new user meets it: its size per platform, and the first Generate Dance
 after installing it into a fresh Blender.
 
     .venv/bin/python bench/addon_first_click.py [--dist DIR] [--pythons .venv/bin/python .venv-blender52/bin/python]

@@ -6,7 +6,7 @@
   beat lock, decoding, foot clean-up), and the cold analysis it needs the first time; the same dance with the
   beat lock on and off (best of three each, alternating) and their ratio;
 - peak resident memory of a whole `generate_dance` for a 10-minute song, in a fresh process;
-- the numpy runtime against the torch networks it replaced (issue 15), each in fresh processes with the analysis
+- the numpy runtime against the checkpoints' torch networks, each in fresh processes with the analysis
   cached: the 3-minute song's first dance (imports included) and second, the 10-minute song's peak memory,
   and their ratios.
 

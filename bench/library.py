@@ -1,4 +1,4 @@
-"""Motion library engine (issue 25): `library build` of 30 minutes of clips, and a 3-minute song's dance from it.
+"""Motion library engine: `library build` of 30 minutes of clips, and a 3-minute song's dance from it.
 
 The clips are the Dance with Melody training dances (as the evaluation decodes them) written as BVH files of our 55
 joints into a temporary folder, up to 30 minutes; the song is a 3-minute beat grid at 120 BPM in 4/4 with onsets

@@ -3,15 +3,15 @@
 Usage: `python bench/render.py [--frames 500] [--width 640] [--height 360] [--engine all]`. Prints JSON.
 
 The same synthetic 55-joint dance is drawn by both. The preview renderer (engine "pyrender": OpenGL on
-pyrender's off-screen context, a pyrender scene before issue 17): frames per second through `iter_frames`
+pyrender's off-screen context): frames per second through `iter_frames`
 (forward kinematics, drawing, read-back), and through `render_motion` (the same plus H.264 encoding in
 ffmpeg). Blender (only when `bpy` imports): the add-on's armature and mannequin mesh keyed with the dance,
 a floor and a fixed camera, Workbench with FXAA and shadows, one `render(write_still=True)` per frame.
 Each engine runs in its own child process, so their OpenGL contexts and start-up costs stay apart;
 the first frame (context, shader compiles; with worker processes, their start and first chunk) is timed
 on its own as `first_frame_s`. `--engine pyrender` also runs, in the same run and its own process, the
-renderer as it was before issue 17 (read from git at BEFORE_COMMIT: a pyrender scene drawn in one process)
-under `before`, with the speed-ups `speedup_frames` and `speedup_video`; `video_frames_per_s` (drawing,
+one-process pyrender renderer at commit d4eea3c (read from git at BEFORE_COMMIT: a pyrender scene drawn in one
+process) under `before`, with the speed-ups `speedup_frames` and `speedup_video`; `video_frames_per_s` (drawing,
 encoding, the mp4 written) is the figure a user waits on.
 """
 
@@ -50,7 +50,7 @@ def synthetic_dance(frames: int, fps: float = 30.0) -> Motion:
     return Motion(rot, root, fps)
 
 
-BEFORE_COMMIT = "d4eea3c"  # dancenet_core/render.py as it was before issue 17 (one process, finer fingers)
+BEFORE_COMMIT = "d4eea3c"  # the one-process pyrender renderer (dancenet_core/render.py, finer fingers)
 
 
 def render_before() -> ModuleType:

@@ -36,7 +36,8 @@ def bench(script: str, *args: str, env: dict[str, str] | None = None) -> dict:
 
 
 def summary(d: dict) -> dict:
-    """The figures issues #9 and #17 ask for, picked out of the benchmarks' outputs (None where one failed)."""
+    """The headline figures (speed and memory of analysis, generation, keying, rendering, the add-on), picked out of
+    the benchmarks' outputs (None where one failed)."""
 
     def pick(name: str, *path: str) -> object:
         node: object = d.get(name, {})

@@ -1,4 +1,4 @@
-"""Issue 18 on the command line with the shipped model: frame rates, a part of the song, root motion and
+"""Animating on the command line with the shipped model: frame rates, a part of the song, root motion and
 continuing a dance from a frame (the add-on's side is in test_addon_animator.py)."""
 
 from __future__ import annotations

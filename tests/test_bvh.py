@@ -467,7 +467,7 @@ def test_blender_reads_what_we_write_and_we_read_what_it_writes(tmp_path: Path) 
     np.testing.assert_allclose(back.positions()[:, index] @ z_up_to_y_up.T, motion.positions(), atol=TOL)
 
 
-# ------------------------------------------------------------------ what a file may ask for (issue 26)
+# ------------------------------------------------------------------ what a file may ask for
 
 
 def _dance(frames: int = 50) -> Motion:
@@ -480,7 +480,7 @@ def _dance(frames: int = 50) -> Motion:
 @pytest.mark.parametrize(("unit", "scale"), [("metres", 1.0), ("centimetres", 100.0), ("millimetres", 1000.0),
                                              ("inches", 1 / 0.0254)])
 def test_a_dance_in_any_unit_reads_back_in_metres(tmp_path: Path, unit: str, scale: float) -> None:
-    """Issue 26 item 5: the unit comes from the skeleton's size, so a dance saved in centimetres (offsets and root
+    """The unit comes from the skeleton's size, so a dance saved in centimetres (offsets and root
     path x100) continues as the same dance, not one 100 times too large."""
     from dancenet_core.rootmotion import read_dance_bvh
 
@@ -512,7 +512,7 @@ CRAFTED = {"huge-path": "more than 1000 m", "huge-height": "more than 1000 m", "
 @pytest.mark.parametrize("case", list(CRAFTED))
 def test_continue_from_a_file_asking_too_much_is_one_line_before_any_work(
         tmp_path: Path, capsys: pytest.CaptureFixture, case: str) -> None:
-    """Issue 26 item 5: finite but absurd values (1e30 m, Frame Time 1000, a skeleton no unit makes a dancer's)
+    """Finite but absurd values (1e30 m, Frame Time 1000, a skeleton no unit makes a dancer's)
     are refused in one line before the music is analysed, not as a traceback after the dance is made."""
     from dancenet_core.cli import main as cli_main
 
@@ -528,7 +528,7 @@ def test_continue_from_a_file_asking_too_much_is_one_line_before_any_work(
 
 
 def test_reading_is_linear_in_the_joints_up_to_a_stated_limit(tmp_path: Path) -> None:
-    """Issue 26 item 9: names are looked up, not searched (8,000 joints took 3.8 s, 100,000 never ended); more
+    """Names are looked up, not searched (a search took 3.8 s for 8,000 joints and never ended for 100,000); more
     than MAX_JOINTS is one line."""
     import time
 

@@ -1,5 +1,5 @@
 """What `dancenet generate` tells its user: the styles it dances in --help, and a summary line of its own after the
-progress bar (issue 27: it was glued to the bar, `100% 00:02cha-cha dance`, where stderr and stdout share a log)."""
+progress bar (on a line of its own, not `100% 00:02cha-cha dance`, where stderr and stdout share a log)."""
 
 from __future__ import annotations
 

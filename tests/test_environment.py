@@ -65,7 +65,7 @@ def test_madmom_metadata_answered_in_process() -> None:
 
 
 def test_the_suite_ignores_the_callers_cache_and_worker_settings(tmp_path: Path) -> None:
-    """Issue 26 item 12: a desktop's XDG_CACHE_HOME (or a developer's DANCENET_CACHE, DANCENET_WORKERS) must not
+    """A desktop's XDG_CACHE_HOME (or a developer's DANCENET_CACHE, DANCENET_WORKERS) must not
     fail the tests that check the defaults; tests/conftest.py leaves them out."""
     callers = str(tmp_path / "callers")
     env = os.environ | {"XDG_CACHE_HOME": callers, "DANCENET_CACHE": callers, "DANCENET_WORKERS": "7"}

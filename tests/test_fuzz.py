@@ -1,4 +1,4 @@
-"""Fuzzing the readers (issue 16): hundreds of generated malformed BVH and audio files. Each is read, or
+"""Fuzzing the readers: hundreds of generated malformed BVH and audio files. Each is read, or
 refused with one line (a DanceNetError); never a traceback, never a hang (each bounded in time)."""
 
 from __future__ import annotations

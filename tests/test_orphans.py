@@ -1,4 +1,4 @@
-"""Issue 26 item 2: the preview's render workers and ffmpeg end with the run however it ends (a closed
+"""The preview's render workers and ffmpeg end with the run however it ends (a closed
 terminal's SIGHUP, SIGKILL), never living on with their ~320 MB each. The analysis workers' test is
 test_safety.py's `test_signal_during_analysis_leaves_no_worker_behind`."""
 

@@ -1,5 +1,5 @@
-"""Issue 26: a run's outputs are one consistent set whatever runs share the folder, names of any script and
-length, an unwritable cache, a demo that runs twice, and the small output defects (items 1, 3, 4, 10, 13, 16).
+"""A run's outputs are one consistent set whatever runs share the folder: names of any script and
+length, an unwritable cache, a demo that runs twice, and the small output defects.
 
 The dance itself is a stand-in (`_fake_generate`): these tests are about what is written where, not the dance."""
 
@@ -60,7 +60,7 @@ def _temporaries(folder: Path) -> list[str]:
     return [p.name for p in folder.iterdir() if ".tmp" in p.name]
 
 
-# --- item 1: concurrent runs into one folder -------------------------------------------------------------------
+# --- concurrent runs into one folder ---------------------------------------------------------------------------
 
 # A `dancenet generate` whose dance is `_dance(seed)`, made only once all `n` runs have passed the early
 # "already exists" check: the runs overlap for certain, however slowly each process starts.
@@ -109,7 +109,7 @@ def test_concurrent_runs_into_one_folder_leave_one_consistent_set(tmp_path: Path
     assert sorted(p.name for p in out.iterdir()) == ["song.bvh", "song.json", "song.npz"]
 
 
-# --- item 3: an unwritable cache -------------------------------------------------------------------------------
+# --- an unwritable cache ---------------------------------------------------------------------------------------
 
 def test_unwritable_cache_carries_on_with_a_one_line_notice(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                            monkeypatch: pytest.MonkeyPatch) -> None:
@@ -127,7 +127,7 @@ def test_unwritable_cache_carries_on_with_a_one_line_notice(tmp_path: Path, caps
     assert blocker.read_text() == "not a folder"
 
 
-# --- items 4 and 10: names of any length and script ------------------------------------------------------------
+# --- names of any length and script ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("limit", [NAME_MAX_BYTES, MAX_STEM_BYTES, 20])
 def test_fitted_names_fit_in_bytes_and_stay_distinct(limit: int) -> None:
@@ -187,7 +187,7 @@ def test_non_latin_titles_get_their_own_outputs(tmp_path: Path, capsys: pytest.C
     assert {"日本語.bvh", "中文歌.bvh", "café.bvh", "日本語.json", "中文歌.json", "café.json"} <= names
 
 
-# --- item 13: `make demo` twice --------------------------------------------------------------------------------
+# --- `make demo` twice -----------------------------------------------------------------------------------------
 
 def test_the_demo_runs_twice(tmp_path: Path, capsys: pytest.CaptureFixture, fake_generate: None,
                              monkeypatch: pytest.MonkeyPatch) -> None:
@@ -210,7 +210,7 @@ def test_the_demo_runs_twice(tmp_path: Path, capsys: pytest.CaptureFixture, fake
     assert (tmp_path / "out" / "example_song.mp4").read_bytes() == b"video"
 
 
-# --- item 16: the small ones -----------------------------------------------------------------------------------
+# --- the small ones --------------------------------------------------------------------------------------------
 
 def test_a_dangling_link_at_an_output_name_is_not_replaced(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                            fake_generate: None) -> None:

@@ -1,4 +1,4 @@
-"""Issue 26 item 14: `--render` without what it needs says, in one line, what a pip user installs (not the
+"""`--render` without what it needs says, in one line, what a pip user installs (not the
 checkout's Debian list); the PyOpenGL that pyrender pins (3.1.0) draws on Python 3.11 and 3.13; a render
 worker's error reaches the caller as its text."""
 
@@ -63,8 +63,8 @@ def test_pyrenders_pinned_pyopengl_takes_byref_arguments() -> None:
 
 
 def test_a_render_workers_error_comes_back_as_its_text(monkeypatch: pytest.MonkeyPatch) -> None:
-    """PyOpenGL's errors carry ctypes arguments that cannot be pickled; a worker's error used to arrive as
-    `cannot pickle '_ctypes.CArgObject'` and hide its cause. Now what a worker raises pickles, with the cause in
+    """PyOpenGL's errors carry ctypes arguments that cannot be pickled; a worker's error must not arrive as
+    `cannot pickle '_ctypes.CArgObject'`, hiding its cause: what a worker raises pickles, with the cause in
     its one line (the worker's function is called here as the pool calls it)."""
 
     class BrokenStage:

@@ -1,4 +1,4 @@
-"""Issue 16: never lose a user's work. Weights load without unpickling, files are written whole or not at all,
+"""Never lose a user's work. Weights load without unpickling, files are written whole or not at all,
 existing outputs are not overwritten silently, the cache heals itself, bad input gets one line."""
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def one_line(e: BaseException) -> str:
     return msg
 
 
-# --- item 6: safe weights -------------------------------------------------------------------------------------
+# --- safe weights ---------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
 def test_shipped_weights_are_plain_data(path: Path) -> None:
@@ -128,7 +128,7 @@ def _no_tmp_left(folder: Path) -> None:
     assert not [p.name for p in folder.iterdir() if ".tmp" in p.name]
 
 
-# --- item 2: files are written whole or not at all -------------------------------------------------------------
+# --- files are written whole or not at all ---------------------------------------------------------------------
 
 def _fail_half_way(real: Callable) -> Callable:
     """`real` (np.savetxt or np.savez_compressed) that writes part of its output, then hits a full disk."""
@@ -176,7 +176,7 @@ def test_ctrl_c_while_writing_a_long_bvh_keeps_the_previous_file(tmp_path: Path)
     _no_tmp_left(tmp_path)
 
 
-# --- items 3 and 9: no silent overwrite; arguments checked before any long work ---------------------------------
+# --- no silent overwrite; arguments checked before any long work ---------------------------------------------
 
 @pytest.fixture
 def no_analysis(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -242,7 +242,7 @@ def test_bad_arguments_are_one_line_before_analysis(tmp_path: Path, capsys: pyte
     assert time.perf_counter() - t < 30
 
 
-# --- item 4: the cache heals itself ----------------------------------------------------------------------------
+# --- the cache heals itself ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "nan"])
 def test_damaged_cache_entry_is_recomputed_with_a_notice(tmp_path: Path, capsys: pytest.CaptureFixture,
@@ -298,7 +298,7 @@ def test_two_processes_writing_one_cache_entry_leave_it_whole(tmp_path: Path) ->
     assert [p.name for p in tmp_path.iterdir()] == ["entry.npz"]
 
 
-# --- item 5: signals stop the analysis workers ---------------------------------------------------------------
+# --- signals stop the analysis workers -----------------------------------------------------------------------
 
 def _children(pid: int) -> set[int]:
     out = set()
@@ -318,7 +318,7 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGKILL],
-                         ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])  # SIGHUP: the terminal closed (issue 26)
+                         ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])  # SIGHUP: the terminal closed
 def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: signal.Signals) -> None:
     song = click_song(tmp_path / "long.wav", 150.0, rate=11025)
     env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
@@ -390,7 +390,7 @@ def test_a_signal_in_the_pool_stops_it_quietly_and_whole() -> None:
     assert out.stdout.splitlines() == ["left []"] * 30
 
 
-# --- item 7: non-finite audio is an error that says so, and nothing is cached -----------------------------------
+# --- non-finite audio is an error that says so, and nothing is cached -------------------------------------------
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_non_finite_audio_is_one_line_and_not_cached(tmp_path: Path, capsys: pytest.CaptureFixture,
@@ -413,7 +413,7 @@ def test_non_finite_audio_is_one_line_and_not_cached(tmp_path: Path, capsys: pyt
     assert not (tmp_path / "out" / "damaged.json").exists()
 
 
-# --- item 8: one line, never a traceback ----------------------------------------------------------------------
+# --- one line, never a traceback ------------------------------------------------------------------------------
 
 def _bvh_text(frames: int = 3) -> str:
     rows = "\n".join(" ".join(["0.0"] * 12) for _ in range(frames))

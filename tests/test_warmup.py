@@ -1,4 +1,4 @@
-"""The warm-up the add-on runs when it is enabled (issue 27 item 4) compiles every kernel a Generate Dance runs,
+"""The warm-up the add-on runs when it is enabled compiles every kernel a Generate Dance runs,
 with the types a real run gives them: a Generate Dance after it compiles nothing more."""
 
 from __future__ import annotations

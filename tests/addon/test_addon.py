@@ -174,7 +174,7 @@ def test_shipped_bone_maps_name_known_joints(addon):
 
 
 def test_a_bad_saved_bone_map_is_left_out_with_a_notice(addon, tmp_path, capsys):
-    """Issue 26 item 8: one saved map nested thousands deep raised RecursionError out of user_maps(), breaking
+    """One saved map nested thousands deep must not raise RecursionError out of user_maps(), which would break
     Auto for every rig in every file; any file that cannot be read as a map is left out with a notice, and the
     File bone map says what is wrong in one line."""
     saved = tmp_path / "bonemaps"
@@ -500,7 +500,7 @@ def test_batch_command_line_exits_non_zero_on_failure(tmp_path):
     assert "Traceback" not in run.stderr
 
 
-# --- never lose a user's work (issue 16) ------------------------------------------------------------
+# --- never lose a user's work -----------------------------------------------------------------------
 
 
 def test_generate_keeps_the_users_own_action_and_says_so(scene, addon, song, tmp_path):

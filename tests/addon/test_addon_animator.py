@@ -1,4 +1,4 @@
-"""Issue 18 in the add-on (fake generator for the wiring; the shipped model in the marked tests): frame
+"""Animating in the add-on (fake generator for the wiring; the shipped model in the marked tests): frame
 rates, a part of the song, root motion, continue from here, takes on the NLA, menus and presets."""
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
-"""Issue 26 item 11: batch mode run from a checkout (the README's `python blender_addon/batch.py -- SONG --out DIR`)
+"""Batch mode run from a checkout (the README's `python blender_addon/batch.py -- SONG --out DIR`)
 beside the installed extension, the linux-x64 zip as `python build_addon.py` builds it: the batch dances, and the
 extension stays installed as it was (its wheels' site-packages, its enabled state). Resetting the preferences for an
-empty scene (`read_factory_settings`) disabled it, and Blender then removed the wheels of the extensions no longer
-enabled, the core's weights among them, in the middle of the batch."""
+empty scene (`read_factory_settings`) must not disable it: Blender then removes the wheels of the extensions no
+longer enabled, the core's weights among them, in the middle of the batch."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 26 item 16: batch mode's output is its summary lines (no temporary file names from Blender's
+"""Batch mode's output is its summary lines (no temporary file names from Blender's
 exporters), and a folder given as a song is called a folder."""
 
 from __future__ import annotations

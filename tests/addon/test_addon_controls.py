@@ -1,4 +1,4 @@
-"""Issue 27 item 1: control rigs are keyed on their controls (Rigify generated from the human metarig, an
+"""Control rigs are keyed on their controls (Rigify generated from the human metarig, an
 armature named and built like Auto-Rig Pro's), no constraint muted, the deform bones following."""
 
 from __future__ import annotations

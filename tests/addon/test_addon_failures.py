@@ -1,4 +1,4 @@
-"""A failed Generate Dance leaves the file as it was (issue 26, defect 6): refused up front where it can be
+"""A failed Generate Dance leaves the file as it was: refused up front where it can be
 checked, and put back whatever step of applying the dance fails."""
 
 from __future__ import annotations
@@ -140,7 +140,7 @@ _CRAFTED = ["{", "[]", '{"song": 1}', "[" * 100_000 + "]" * 100_000, "1" * 5000,
 
 @pytest.mark.parametrize("text", _CRAFTED, ids=["broken", "list", "wrong fields", "nested", "huge number", "string"])
 def test_what_a_crafted_blend_stores_is_left_unread_never_raised(scene, addon, song, text):
-    """Issue 26, any saved file the add-on reads: a .blend whose take record, beat markers or last analysis were
+    """Any saved file the add-on reads: a .blend whose take record, beat markers or last analysis were
     damaged or crafted draws its panels, answers polls and dances; the take just is not one, the analysis not
     shown, and markers it cannot read are left where they are."""
     assert generate(scene, song) == {"FINISHED"}

@@ -1,4 +1,4 @@
-"""Issue 25 item 5: the motion-library engine from the add-on: the panel's Engine and Library settings, a take
+"""The motion-library engine from the add-on: the panel's Engine and Library settings, a take
 danced from a library (one the test writes, and the shipped CMU one), Continue From Here and bad folders answered
 in one line, the Style menu's styles from the library, batch mode with --engine library; and Build Library, which
 builds a folder in Blender (no torch)."""

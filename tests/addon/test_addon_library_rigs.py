@@ -1,4 +1,4 @@
-"""Issue 25 item 1 in the add-on: a motion library from rigs, not only from BVH files. A Mixamo-named armature resting
+"""In the add-on, a motion library from rigs, not only from BVH files. A Mixamo-named armature resting
 in an A-pose (and DanceNet's own rig in its T-pose) is keyed with a known dance by the add-on's own keying; then
 (i) its action, as one of the file's armature actions, (ii) the rig exported to FBX in a Library folder beside a
 BVH clip, are built into a library whose clip reproduces the keyed joint positions, and Generate Dance with the

@@ -1,4 +1,4 @@
-"""Bone maps that bend and mappings the user already has (issue 27, items 2 and 3): rigs that lack a spine, neck
+"""Bone maps that bend and mappings the user already has: rigs that lack a spine, neck
 or toe bone of their convention, rigs assigned by the VRM add-on, rigs named by MMD Tools."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 27 item 6: a panel that reads like Blender's (fake generator): sub-panels in both sidebars, the takes in a
+"""A panel that reads like Blender's (fake generator): sub-panels in both sidebars, the takes in a
 UIList, the missing optional joints in one line, and the scene's true frame rate (fps / fps_base)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 25 item 1: a rig's animation as Blender samples it (world rest and pose matrices per bone) read onto our
+"""A rig's animation as Blender samples it (world rest and pose matrices per bone) read onto our
 skeleton (`jointmap.armature_pose`, `library.build.armature_motion`), made here without Blender: our skeleton
 posed into an A-pose rest (arms 45 degrees down, the spine leaning), laid out Z-up facing -Y in centimetres under
 an object scale of 0.01 with bones rolled every which way, then danced; and the command line's answer to FBX."""

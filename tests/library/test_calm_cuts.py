@@ -1,4 +1,4 @@
-"""Cuts are made where the dancers are calm (issue 25: no joint's step at a transition past the capture's 99th
+"""Cuts are made where the dancers are calm (no joint's step at a transition past the capture's 99th
 percentile): a cut into a figure whose joints, as the warp plays them, step past `CALM_LIMIT` of their 99th
 percentile in the library costs steeply, so the plan cuts into calmer figures where it has them."""
 

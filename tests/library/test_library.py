@@ -1,4 +1,4 @@
-"""The motion library engine (issue 25) on clips the tests make: a dancer swinging legs and arms and stepping
+"""The motion library engine on clips the tests make: a dancer swinging legs and arms and stepping
 forward at a known tempo, so the beats, bars and cuts are known; and bad libraries, which answer in one line."""
 
 from __future__ import annotations

@@ -270,7 +270,7 @@ BAD_FIELDS = {
 
 @pytest.mark.parametrize("case", list(BAD_FIELDS))
 def test_cache_metadata_must_fit_the_arrays(song: Path, tmp_path: Path, case: str) -> None:
-    """Issue 26 item 7: an entry whose fields disagree with each other (a negative or huge duration, a tempo or
+    """An entry whose fields disagree with each other (a negative or huge duration, a tempo or
     fps that is not the arrays', any exception while reading it) is not an analysis: a ValueError, which
     `analyze_music` answers by recomputing with its one-line notice."""
     good = tmp_path / "cache"

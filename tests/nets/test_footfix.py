@@ -20,7 +20,7 @@ from dancenet_core.training.footfix import ContactTraining, LstmBaseline, simula
 LAYOUT = FeatureLayout(55, 5)
 TOE_TO_ROOT_M = 0.95  # root height with straight legs and toes on the floor
 # Stillness longer than real dancers' longest (0.33 s on the test split) is a freeze; a few still frames at a turning
-# point are not, and which dances have them changes with the seed and with another machine's rounding (issue 26).
+# point are not, and which dances have them changes with the seed and with another machine's rounding.
 FREEZE_S = 0.5
 
 
@@ -196,7 +196,8 @@ def test_shipped_fixer_keeps_feet_above_the_floor() -> None:
 def test_shipped_fixer_keeps_a_glide_smooth() -> None:
     """A glide cannot be pinned without steps, so the model pins and releases (stick-slip), which adds some
     acceleration to a glide of ~0.2 m/s^2; it must stay well under the jitter of DanceNet's own dances (1.4
-    m/s^2 on the test songs) and of real dancing (3.0). The issue's relative bound is checked on dances below."""
+    m/s^2 on the test songs) and of real dancing (3.0). The bound relative to the dances' own jitter is
+    checked below."""
     fixer = FootFixer.load(WEIGHTS)
     for motion in _gliding(3, 6, frames=250):
         feats = encode(motion, floor=0.0)
@@ -220,13 +221,13 @@ def test_shipped_fixer_meets_the_gate_on_dancenet_dances() -> None:
     less sliding, jitter up at most 10%, toes neither through the floor nor floating, feet near the floor as
     often, and no new freezes.
 
-    Issue 23's gate is the real dancers' sliding on the validation songs (0.566): the shipped foot model is the
+    The gate is the real dancers' sliding on the validation songs (0.566): the shipped foot model is the
     smallest sliding weight that meets it (0.549, `dancenet validate`, in the model card); real dancers glide, so
-    it no longer halves DanceNet's sliding. Sampled dances differ with the seed and, through rounding, between
+    it does not halve DanceNet's sliding. Sampled dances differ with the seed and, through rounding, between
     machines (BLAS kernels), so each bound keeps a margin over what these dances showed here: sliding 0.74 of
-    before over 16 dances (issue 26 item 12 saw +-0.1 between sets of 8 with the earlier model), jitter at most
+    before over 16 dances (sets of 8 dances can differ by +-0.1), jitter at most
     0.93 of before, toes at most 0.1 cm up, contact at least 0.99 of before, still stretches grown by at most
-    0.04 s (0.24 s with the earlier model)."""
+    0.04 s."""
     from dancenet_core.constants import DEFAULT_TEMPERATURE
     from dancenet_core.engines.dancenet import sample_dance
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle

@@ -255,11 +255,11 @@ def test_runtime_files_never_unpickle(tmp_path: Path) -> None:
 
 
 def test_a_foot_model_for_other_channels_is_refused_in_one_line(tmp_path: Path) -> None:
-    """A foot model file whose network writes other channels (one from before the root's travel was kept out
-    of its reach, issue 13) is a one-line error at loading, not a broadcast error in the middle of a dance."""
+    """A foot model file whose network writes other channels (here the root's travel channels as well as the
+    feet's) is a one-line error at loading, not a broadcast error in the middle of a dance."""
     fixer = RuntimeFootFixer.load()
     w, b = fixer.net.state["net.4.weight"], fixer.net.state["net.4.bias"]
-    extra = len(fixer.ch.lower) - len(fixer.ch.corrected)  # the travel channels it used to write too
+    extra = len(fixer.ch.lower) - len(fixer.ch.corrected)  # the travel channels it must not write
     state = fixer.net.state | {"net.4.weight": np.concatenate([w, w[:extra]]), "net.4.bias": np.r_[b, b[:extra]]}
     fixer.net.state = state
     fixer.save(tmp_path / "old.npz")

@@ -1,4 +1,4 @@
-"""The motion prior (issue 23): DanceNet trained on the dances without music, in one style, then fine-tuned."""
+"""The motion prior: DanceNet trained on the dances without music, in one style, then fine-tuned."""
 
 from __future__ import annotations
 
