@@ -56,14 +56,25 @@ def remove_leftovers(folder: str | Path) -> None:
 
 
 def _alive(pid: int) -> bool:
-    """Whether process `pid` exists (POSIX: signal 0 checks without sending anything)."""
+    """Whether process `pid` still runs (POSIX: signal 0 checks without sending anything). A zombie does not:
+    a worker killed with its batch stays one until the init process reaps it, which in a container can take
+    a second or more, and a run started at once must still clear its leftovers."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except (OSError, OverflowError):  # someone else's process, or no pid at all: not ours to judge
         return True
-    return True
+    return not _zombie(pid)
+
+
+def _zombie(pid: int) -> bool:
+    """Whether `pid` has ended and waits to be reaped (Linux's /proc; elsewhere none is reported)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[-1].split()[:1] == ["Z"]
 
 
 def write_error(path: Path, e: OSError) -> DanceNetError:

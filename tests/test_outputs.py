@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from made_up import click_song, small_motion
 
-from dancenet_core.atomic import NAME_MAX_BYTES, atomic_path, fit_name, write_text
+from dancenet_core.atomic import NAME_MAX_BYTES, atomic_path, fit_name, remove_leftovers, write_text
 from dancenet_core.bvh import write_bvh
 from dancenet_core.cli import main as cli_main
 from dancenet_core.commands import generate as generate_command
@@ -243,6 +243,26 @@ def test_a_killed_runs_temporary_files_go_on_the_next_run(tmp_path: Path, capsys
     assert code == 0, err
     assert not any(p.exists() for p in dead)
     assert live.exists() and mine.exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="zombies are told from Linux's /proc")
+def test_a_zombies_temporary_files_are_leftovers(tmp_path: Path) -> None:
+    """A worker killed with its batch is a zombie until init reaps it (a second or more in a container): its
+    temporary files are a leftover at once, while a live process' files stay."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    deadline = time.monotonic() + 30
+    while Path(f"/proc/{child.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+        assert time.monotonic() < deadline, "the child never ended"
+        time.sleep(0.01)
+    try:
+        zombie = tmp_path / f".song.{child.pid}.0123abcd.tmp.npz"
+        live = tmp_path / f".song.{os.getpid()}.0123abcd.tmp.npz"
+        for p in (zombie, live):
+            p.write_text("x")
+        remove_leftovers(tmp_path)
+        assert not zombie.exists() and live.exists()
+    finally:
+        child.wait()
 
 
 def test_write_errors_say_what_happened(tmp_path: Path) -> None:
