@@ -32,9 +32,10 @@ def _warm_up(stop: threading.Event) -> None:
 
 @contextlib.contextmanager
 def generating() -> Iterator[None]:
-    """What a generation holds while it runs: the warm-up's compiling process stopped, so that the click has the
-    CPU (its kernels run their numpy twins meanwhile), and then `LOCK`, so that it never runs beside a warm-up
-    step. Stopped first: the wait for a warm-up step under way goes faster without it too."""
+    """What a generation holds while it runs: the warm-up's compiling process stopped once it has written the
+    music analysis' kernels (which the click waits for; the sampler's kernel runs its numpy twin meanwhile), so
+    that the click has the CPU, and then `LOCK`, so that it never runs beside a warm-up step. Stopped first: the
+    wait for a warm-up step under way goes faster without it too."""
     from dancenet_core.warmup import paused
 
     with paused(), LOCK:
@@ -43,7 +44,8 @@ def generating() -> Iterator[None]:
 
 def start() -> None:
     """Warm up on a thread of its own (each registration has its own stop signal). The kernels are deferred
-    first (dancenet_core.jit): until the warm-up has them compiled, a click runs their numpy twins."""
+    first (dancenet_core.jit): until the warm-up has them compiled, a click waits for the music analysis' kernels
+    from its compiling process and runs the others' numpy twins (dancenet_core/warmup.py)."""
     global _stop, _thread
     from dancenet_core import jit
 

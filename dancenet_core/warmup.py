@@ -162,14 +162,13 @@ def _compile_elsewhere() -> _Compiling:
     kernels = _kernels()
     jit.expect(*(kernel for name in WAITED for kernel in kernels[name][1]))
     _track(child)
-    threading.Thread(target=_mark_cached, args=(child.stdout,), name="dancenet-compiled", daemon=True).start()
+    threading.Thread(target=_mark_cached, args=(child.stdout, kernels), name="dancenet-compiled", daemon=True).start()
     return _Compiling(child, errors)
 
 
-def _mark_cached(names: IO[str]) -> None:
-    """Mark each kernel cached as the process names it (and stop the process if a generation waits no more for
-    it); once it has ended, however, nothing is coming from it."""
-    kernels = _kernels()
+def _mark_cached(names: IO[str], kernels: dict[str, tuple[Callable[[], None], tuple[Any, ...]]]) -> None:
+    """Mark each of `kernels` cached as the process names it (and stop the process if a generation waits no more
+    for it); once it has ended, however, nothing is coming from it."""
     try:
         for line in names:
             if line.strip() in kernels:
