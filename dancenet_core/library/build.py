@@ -222,7 +222,7 @@ def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
-    if not any(library.styles):  # the learned match dances it: its motion features computed once, here
+    if library.unlabelled:  # the learned match dances it: its motion features computed once, here
         frames_of(library)
     path.parent.mkdir(parents=True, exist_ok=True)
     library.save(path)

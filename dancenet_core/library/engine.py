@@ -90,8 +90,9 @@ class LibraryEngine:
         progress("dancing", 0.0)
         start, end = request.part(analysis.duration_s)
         kept = _kept(request, library.fps, end - start)
+        match = _load_match() if library.unlabelled else None
         dances = choreograph(library, analysis, request.seed, start + (0.0 if kept is None else kept.duration), end,
-                             request.takes, chosen or None, kept=kept, match=_load_match() if not styles else None)
+                             request.takes, chosen or None, kept=kept, match=match)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
         motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]

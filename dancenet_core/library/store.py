@@ -65,6 +65,12 @@ class MotionLibrary:
         return len(self.names)
 
     @property
+    def unlabelled(self) -> bool:
+        """No clip names a style (a folder of downloads): the learned match of music and movement keeps its dances
+        to the song's style, and its build stores the match's motion features."""
+        return not any(self.styles)
+
+    @property
     def duration_s(self) -> float:
         return len(self.rotations) / self.fps
 
