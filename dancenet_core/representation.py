@@ -77,7 +77,7 @@ def heading(root_rotvecs: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(q[:, 1], q[:, 3])
 
 
-def _yaw_and_tilt(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def yaw_and_swing(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split root rotations R = Ry(yaw) @ S into unwrapped yaw [T] (`heading`) and swing S [T, 3] (S_y = 0)."""
     q = Rotation.from_rotvec(root_rotvecs).as_quat()
     yaw = np.unwrap(heading(root_rotvecs))
@@ -88,7 +88,7 @@ def _yaw_and_tilt(root_rotvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def heading_frames(motion: Motion) -> np.ndarray:
     """Unwrapped heading (yaw about +Y) of the root, per frame."""
-    return _yaw_and_tilt(motion.rotations[:, 0])[0]
+    return yaw_and_swing(motion.rotations[:, 0])[0]
 
 
 def foot_contacts(
@@ -129,7 +129,7 @@ def encode(motion: Motion, floor: float | None = None) -> np.ndarray:
     """Motion -> features [T, D] (float32)."""
     s = motion.skeleton
     layout = FeatureLayout.for_skeleton(s)
-    yaw, swing = _yaw_and_tilt(motion.rotations[:, 0])
+    yaw, swing = yaw_and_swing(motion.rotations[:, 0])
     root = motion.root_positions
     t = motion.num_frames
     feats = np.zeros((t, layout.size), dtype=np.float64)

@@ -18,7 +18,7 @@ from .bvh import _write, read_bvh
 from .constants import ROOT_MODES
 from .errors import DanceNetError
 from .motion import Motion
-from .representation import _yaw_and_tilt
+from .representation import yaw_and_swing
 from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
 
 ROOT_BONE = "root"
@@ -42,7 +42,7 @@ def split_root(motion: Motion) -> tuple[Motion, np.ndarray, np.ndarray]:
 
     Turning the first by the heading about +Y and moving it to the floor point gives the dance back.
     """
-    yaw, swing = _yaw_and_tilt(motion.rotations[:, 0])
+    yaw, swing = yaw_and_swing(motion.rotations[:, 0])
     floor = motion.root_positions * np.array([1.0, 0.0, 1.0])
     rotations = motion.rotations.copy()
     rotations[:, 0] = swing

@@ -15,7 +15,7 @@ from dancenet_core.music.features import analyze_music
 from dancenet_core.music.form import Section, SongForm, song_form
 from dancenet_core.representation import heading_frames
 from dancenet_core.request import DanceRequest
-from dancenet_core.returns import _copies, dance_returns
+from dancenet_core.returns import _copies, carry_on, dance_returns
 from tests.made_up import analysis, arranged_training_song
 
 BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s
@@ -84,6 +84,37 @@ def test_returns_are_danced_as_their_first_hearing_and_the_joins_do_not_jump(mod
     if mode == "repeat":
         assert return_likeness(out.positions(), heading_frames(out), fps, form) < 0.1
         assert return_likeness(motion.positions(), heading_frames(motion), fps, form) > 0.5
+
+
+def test_a_join_between_dances_that_travel_different_ways_adds_no_slide():
+    """Two dances facing the same way, one travelling sideways and one forwards at 1 m/s: through the crossfade
+    the root travels no faster than either (a blend of their places would slide at up to 1.3 m/s)."""
+    fps, t = 25.0, np.arange(200) / 25.0
+    still = np.zeros((200, 55, 3))
+
+    def travelling(direction: list[float]) -> Motion:
+        return Motion(still, np.array([0.0, 0.9, 0.0]) + t[:, None] * direction, fps)
+
+    joined = carry_on(travelling([1.0, 0.0, 0.0]), travelling([0.0, 0.0, 1.0]), 100)
+    speed = np.linalg.norm(np.diff(joined.root_positions[:, [0, 2]], axis=0), axis=1) * fps
+    assert speed.max() < 1.0 + 1e-6
+    assert np.allclose(np.diff(joined.root_positions[-50:], axis=0) * fps, [0.0, 0.0, 1.0])  # then on as danced
+
+
+def test_a_join_between_dances_that_turn_different_ways_adds_no_spin():
+    """One dance turning left and one turning right, 1 rad/s each: through the crossfade the dancer turns no faster
+    than either (a blend of their headings would spin at up to 1.8 rad/s), then on as the second turns."""
+    fps, t = 25.0, np.arange(200) / 25.0
+
+    def turning(rate: float) -> Motion:
+        rot = np.zeros((200, 55, 3))
+        rot[:, 0, 1] = rate * t
+        return Motion(rot, np.tile([0.0, 0.9, 0.0], (200, 1)), fps)
+
+    joined = carry_on(turning(1.0), turning(-1.0), 100)
+    rate = np.diff(heading_frames(joined)) * fps
+    assert np.abs(rate).max() < 1.0 + 1e-6
+    assert np.allclose(rate[-50:], -1.0)
 
 
 def test_returns_before_a_continued_dances_join_are_left_as_danced():
