@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 CONFIGS = {"plan as shipped": {}, "cuts on phrase starts": {"off_phrase": 1.0},
            "section energy": {"section_energy": 0.5}, "both": {"off_phrase": 1.0, "section_energy": 0.5},
-           "cut 0.2": {"cut": 0.2}, "cut 0.1": {"cut": 0.1}, "cut 0.05": {"cut": 0.05},
+           "cut 0.1": {"cut": 0.1}, "cut 0.05": {"cut": 0.05},
            "cut 0.05, energy 1": {"cut": 0.05, "energy": 1.0}}
 COLUMNS = ("fid_k", "fid_g", "div_k", "beat_align_score", "bas_own_ratio", "style_consistency", "joint_speed_m_s",
            "return_likeness")

@@ -69,11 +69,7 @@ class Settings:
     pose: float = 1.0
     velocity: float = 0.15
     contact: float = 0.3
-    # Every cut costs this much more than carrying on with the clip. On the validation songs (16 takes,
-    # `scripts/library_plan_sweep.py`) 0.05 dances as 0.2 did danced anew (FID_k 12.14 against 12.15, BAS 0.240)
-    # with half the frames in runs of one clip over 4 bars (8% against 19%), and with the song's returns danced again
-    # measures closer to it (12.59 against 13.65): a return copies shorter runs of one clip.
-    cut: float = 0.05
+    cut: float = 0.2  # every cut costs this much more than carrying on with the clip
     calm: float = 50.0  # per unit of a cut's step over the limit (steep: only where no calmer cut fits)
     # With a learned match (a library whose clips name no style): per unit of its cosine below 1 on each bar (off: on
     # the validation songs it did not raise the Beat Align Score), and per unit of the part's probability of a
