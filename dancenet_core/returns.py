@@ -137,10 +137,11 @@ def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: t
     root[at:at + n] = root[before] * [1.0, 0.0, 1.0] + np.cumsum(heading.apply(steps), axis=0)
     root[at:at + n, 1] = a_root[:, 1] * (1 - w[:, 0]) + b_root[:, 1] * w[:, 0]
     # the rest of b turned about its last blended frame by what the blend turned less or more than b did
-    turn = Rotation.from_euler("y", yaw[-1] - yaw_b[-1])
-    rest = root[at + n:] - b_root[-1] * [1.0, 0.0, 1.0]
-    root[at + n:] = turn.apply(rest) + root[at + n - 1] * [1.0, 0.0, 1.0]
-    rots[at + n:, 0] = (turn * Rotation.from_rotvec(rots[at + n:, 0])).as_rotvec()
+    if at + n < len(root):
+        turn = Rotation.from_euler("y", yaw[-1] - yaw_b[-1])
+        rest = root[at + n:] - b_root[-1] * [1.0, 0.0, 1.0]
+        root[at + n:] = turn.apply(rest) + root[at + n - 1] * [1.0, 0.0, 1.0]
+        rots[at + n:, 0] = (turn * Rotation.from_rotvec(rots[at + n:, 0])).as_rotvec()
 
     def lowest(r: np.ndarray, p: np.ndarray) -> np.ndarray:
         return toe_ends(Motion(r, p, motion.fps, motion.skeleton))[..., 1].min(axis=1)

@@ -115,6 +115,8 @@ def test_a_join_between_dances_that_turn_different_ways_adds_no_spin():
     rate = np.diff(heading_frames(joined)) * fps
     assert np.abs(rate).max() < 1.0 + 1e-6
     assert np.allclose(rate[-50:], -1.0)
+    ends = carry_on(turning(1.0), turning(-1.0), 190)  # the crossfade runs to the dance's last frame
+    assert ends.num_frames == 200 and np.abs(np.diff(heading_frames(ends))[-10:] * fps).max() < 1.0 + 1e-6
 
 
 def test_returns_before_a_continued_dances_join_are_left_as_danced():
