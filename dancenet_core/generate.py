@@ -166,7 +166,7 @@ def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRe
     settings say (`returns.dance_returns`; a section danced with a style or energy of its own is left as it is),
     their foot contacts following the frames."""
     keep = request.at_s if request.continue_from is not None else 0.0
-    modes = request.section_returns()
+    modes = {o.section: "anew" if o.redances else o.returns for o in request.sections if o.redances or o.returns}
     motions, contacts = [], []
     for k, motion in enumerate(takes.motions):
         out, frame_map = dance_returns(motion, form, start_s, request.returns, keep, modes)

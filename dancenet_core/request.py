@@ -224,11 +224,6 @@ class DanceRequest:
         """How much larger than the model makes them the dance's moves are (the energy preset)."""
         return ENERGY_MOVES[self.energy]
 
-    def section_returns(self) -> dict[str, str]:
-        """How the sections with settings of their own are danced where they return: anew when they are danced
-        with a style or energy of their own, else as they say."""
-        return {o.section: "anew" if o.redances else o.returns for o in self.sections if o.redances or o.returns}
-
     def part(self, duration_s: float) -> tuple[float, float]:
         """(start, end) seconds of the song to dance: the end clipped to the song's; a start too close to the
         song's end is an error that says how long the song is."""

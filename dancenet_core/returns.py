@@ -215,14 +215,6 @@ def _copies(form: SongForm, mode: str, section_modes: dict[str, str]) -> list[tu
     return runs
 
 
-def bars_again(form: SongForm, mode: str, section_modes: dict[str, str] | None = None) -> list[tuple[float, float]]:
-    """(bar start, the start of the bar it copies) in song seconds for every bar the returns dance again
-    (`_copies`), for an engine that plans a copied bar's source for all the bars it is danced on."""
-    edges = form.bar_starts
-    return [(float(edges[t + k]), float(edges[s + k])) for t, end, s, _how in _copies(form, mode, section_modes or {})
-            for k in range(end - t)]
-
-
 def _within_warp(edges: np.ndarray, first: int, end: int, source: int, how: str) -> list[tuple[int, int, int, str]]:
     """The copy of bars [first, end) from `source` on, as the runs of its bars whose length is within WARP_RANGE of
     their source bar's (of two bars or more: a shorter one would be little more than its joins)."""

@@ -1,6 +1,6 @@
 """The library plan's settings, measured as `dancenet evaluate` measures (the users' library: the training dances but
-the measured ones, as BVH without music), each danced anew and with the song's returns danced again (the default:
-planned for, then copied, as `dancenet generate` dances them): FID_k, FID_g, Beat Align Score, style consistency, return
+the measured ones, as BVH without music), each danced anew and with the song's returns danced again (the default,
+`returns.dance_returns`), the same dances rewritten: FID_k, FID_g, Beat Align Score, style consistency, return
 likeness and the plan's cuts. Settings are chosen on the validation songs (training songs the models leave out);
 `--part test` measures chosen settings once on the test songs, against the shipped plan in the same run.
 
@@ -35,7 +35,7 @@ PLAN = ("cuts", "long_run_share", "cuts_over", "transition_frames_over_p99", "ma
 def main() -> int:
     from dancenet_core.environment import default_data_dir
     from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features
-    from dancenet_core.evaluation.form import song_forms
+    from dancenet_core.evaluation.form import danced_again, song_forms
     from dancenet_core.evaluation.library_row import library_row, users_library
     from dancenet_core.evaluation.motion_style import MotionStyleModel
     from dancenet_core.evaluation.test_split import split_with_beats
@@ -65,9 +65,8 @@ def main() -> int:
     for name in args.configs:
         settings = dataclasses.replace(DEFAULT_SETTINGS, **CONFIGS[name])
         dances, styles, beats, info = library_row(library, measured, data, fps, args.takes, settings=settings)
-        again = library_row(library, measured, data, fps, args.takes, settings=settings, returns="repeat")[0]
         rows = [DanceSet(f"{name}, anew", name, dances, styles, beats, {}, songs),
-                DanceSet(f"{name}, returns", name, again, styles, beats, {}, songs)]
+                DanceSet(f"{name}, returns", name, danced_again(dances, songs, forms), styles, beats, {}, songs)]
         for row_name, row in measure(rows, reference, fps, style_net, forms).items():
             out[row_name] = {k: round(row[k], 4) for k in COLUMNS} | {k: round(info[k], 4) for k in PLAN}
             print(row_name, out[row_name], flush=True)

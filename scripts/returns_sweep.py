@@ -5,8 +5,7 @@ without music) dance `--takes` takes of each song, and each row rewrites the sam
 `evaluate` does:
 
 - danced anew: the dances as they are;
-- returns danced again: `returns.dance_returns` (the default, `--returns repeat`; the library engine's dances planned
-  for their returns, as `dancenet generate` dances them);
+- returns danced again: `returns.dance_returns` (the default, `--returns repeat`);
 - joins alone: every copy's joins and placement, its frames the same bars of another take of the same song (takes
   beyond the measured ones, never measured themselves);
 - returns from another take: the copy as the default makes it (bar against bar, joins, placement, the real-time
@@ -75,8 +74,6 @@ def main() -> int:
     dances = {"DanceNet": [generate_for_pair(bundle, p, k, DEFAULT_TEMPERATURE, True, beats_s=beats[p.seq])[0]
                            for p in val for k in range(lend * takes)],
               "library": library_row(library, val, data, fps, lend * takes)[0]}
-    # the library engine plans for its returns (`choreography._occurrence_means`): its default row is danced so
-    planned = library_row(library, val, data, fps, lend * takes, returns="repeat")[0]
     songs = [p.seq for p in val for _ in range(takes)]
     styles = [p.style for p in val for _ in range(takes)]
     song_beats = [beats[p.seq] for p in val for _ in range(takes)]
@@ -106,8 +103,7 @@ def main() -> int:
     for engine, made in dances.items():
         hows = ("anew", "repeat", "joins alone", "returns from another take", "copied 2 bars off")[:5 if lend == 2
                                                                                                      else 2]
-        rows = [DanceSet(how, how, [planned[i] if engine == "library" and how == "repeat" else
-                                    rewritten(made[i], made[(i + takes) % len(made)], seq, how)
+        rows = [DanceSet(how, how, [rewritten(made[i], made[(i + takes) % len(made)], seq, how)
                                     for i, seq in zip(measured, songs, strict=True)], styles, song_beats, {}, songs)
                 for how in hows]
         table = measure(rows, reference, fps, style_net, forms)

@@ -339,26 +339,23 @@ def _library_rows(args: argparse.Namespace, pairs: dict, split: dict, test_pairs
                                                                     hide, match)
         rows.append(row)
         print(f"  {name}: {len(row.dances)} dances", flush=True)
-    default = DanceSet("library_returns", f"{rows[0].label}, returns danced again (the default)")
-    default.dances, default.styles, default.beats_s, _info = library_row(users, test_pairs, data, fps, args.takes,
-                                                                         returns="repeat")
-    rows.append(default)
     rows[0].info["clip_analysis"] = clip_analysis(list(pairs.values()), data, shipped.skeleton, fps,
                                                   set(split["test"]))
     return rows
 
 
 def _with_returns(rows: list[DanceSet], test_pairs: list, data: Path, takes: int) -> dict:
-    """Each row told its songs, and DanceNet's default row again with its returning sections danced again (the
-    library engine plans for its returns: `_library_rows` dances its default row); the songs' forms."""
+    """Each row told its songs, and the default rows again with their returning sections danced again; the
+    songs' forms."""
     forms = song_forms(test_pairs, data)
     rows[0].songs = [p.seq for p in test_pairs]
     for row in rows[1:]:
         row.songs = [p.seq for p in test_pairs for _ in range(takes)]
-    row = next((r for r in rows if r.name == "dancenet_shipped_footfix"), None)
-    if row is not None:  # the default: returning sections danced again
-        rows.append(DanceSet(f"{row.name}_returns", f"{row.label}, returns danced again (the default)",
-                             danced_again(row.dances, row.songs, forms), row.styles, row.beats_s, {}, row.songs))
+    for name in ("dancenet_shipped_footfix", "library"):  # the defaults: returning sections danced again
+        row = next((r for r in rows if r.name == name), None)
+        if row is not None:
+            rows.append(DanceSet(f"{name}_returns", f"{row.label}, returns danced again (the default)",
+                                 danced_again(row.dances, row.songs, forms), row.styles, row.beats_s, {}, row.songs))
     return forms
 
 

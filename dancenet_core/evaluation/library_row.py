@@ -39,9 +39,7 @@ from ..library.store import MotionLibrary
 from ..library.transitions import cut_window
 from ..motion import Motion
 from ..music.features import MusicAnalysis, analyze_music
-from ..music.form import song_form
 from ..representation import decode
-from ..returns import bars_again, dance_returns
 from ..skeleton import BODY_JOINTS, Skeleton
 from .style_share import hidden, own_style_seconds
 
@@ -78,13 +76,12 @@ def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -
 
 
 def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int,
-                hide_styles: bool = False, match: MatchModel | None = None, settings: Settings = DEFAULT_SETTINGS,
-                returns: str = "anew") -> tuple[list, list[str], list[np.ndarray], dict]:
+                hide_styles: bool = False, match: MatchModel | None = None, settings: Settings = DEFAULT_SETTINGS
+                ) -> tuple[list, list[str], list[np.ndarray], dict]:
     """Dances from `library` (take k with seed k) to every test sequence's song span, their styles and beats (dance
     time), and the engine's own figures: per dance and over all. `hide_styles`: the library's clips danced without
     their style labels (a folder of unsorted clips), `match` the plan's learned match of music and movement; the
-    share of frames from clips of the song's style is measured either way. `returns`: how the songs' returning
-    sections are danced, as `dancenet generate --returns` dances them (planned for, then copied)."""
+    share of frames from clips of the song's style is measured either way."""
     style_of = dict(zip(library.names, library.styles, strict=True))
     if hide_styles:
         library = hidden(library)
@@ -95,11 +92,9 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
     for p in test:
         music = analyze_music(seqs[p.seq].audio)
         start = seqs[p.seq].music_offset_s
-        form = song_form(music)
-        again = bars_again(form, returns)
         for take in range(takes):
             d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style, match=match,
-                            settings=settings, again=again)[0]
+                            settings=settings)[0]
             pos = d.motion.positions()[:, :BODY_JOINTS]
             step = (np.linalg.norm(np.diff(pos, axis=0), axis=-1) / p99).max(axis=1)
             near = np.zeros(len(step), bool)
@@ -107,7 +102,7 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
                 near[cut_window(c, m, fps)] = True
             blended.append(step[near])
             ratio = float(step[near].max()) if near.any() else 0.0
-            dances.append(dance_returns(d.motion, form, start, returns)[0])
+            dances.append(d.motion)
             styles.append(p.style)
             beats.append(music.beat_times - start)
             figures = d.report.figures

@@ -7,10 +7,9 @@
    each song beat (1, 2, 1/2, 3/2 or 2/3: `RATIOS`), so that a clip danced at half or twice the song's tempo, or
    whose tempo was read an octave off, still plays at its dancers' speed; a bar of n beats takes the library's
    ratio x n beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of
-   the mean onset strength; a bar that the song's returns dance again (`returns.bars_again`) is planned for the mean
-   of the music's at every bar it is danced on), the time-warp in real time (how much faster or slower than
-   captured the figure plays, at one speed from the bar's first beat to the next bar's: beyond +-15% only when
-   nothing fits, at a steep cost) and seeded noise
+   the mean onset strength), the time-warp in real time (how much faster or slower than captured the figure plays,
+   at one speed from the bar's first beat to the next bar's: beyond +-15% only when nothing fits, at a steep cost)
+   and seeded noise
    (different seeds, different dances); each join's: the distance between the pose, velocity and foot contact
    where one figure ends and the next starts (0 where the next figure is the clip's own continuation), and, at a
    cut, a steep cost where some joint of the new figure, as fast as the warp plays it, steps further in the
@@ -252,7 +251,7 @@ class _Bars:
 
     def __init__(self, library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
                  style: str | None, settings: Settings, match: FigureMatch | None,
-                 form: SongForm | None = None, again: dict[int, int] | None = None) -> None:
+                 form: SongForm | None = None) -> None:
         self.library, self.grid, self.rng, self.settings, self.match = library, grid, rng, settings, match
         starts, ratios = self.starts, self.ratios = figure_states(library, grid, style)
         self.nb = nb = len(library.beats)
@@ -276,7 +275,7 @@ class _Bars:
         if settings.section_energy:
             means = np.array([loud[section == k].mean() for k in section])
             loud = (1 - settings.section_energy) * loud + settings.section_energy * means
-        self.music_rank = _occurrence_means(_ranks(loud), again or {})
+        self.music_rank = _ranks(loud)
         self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
         self.entry = entry_steps(library, starts)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
@@ -350,31 +349,15 @@ def _form_bars(form: SongForm | None, bar_starts: np.ndarray) -> tuple[np.ndarra
     return near, np.maximum(np.searchsorted(section_s, bar_starts + PHRASE_TOLERANCE_S, side="right") - 1, 0)
 
 
-def _occurrence_means(rank: np.ndarray, again: dict[int, int]) -> np.ndarray:
-    """Per bar, its music's rank, or for a bar whose figure the returns copy ({bar: bar it copies}) the mean over
-    that bar and its copies: the figure is danced at each. Planned for the first occurrence's loudness alone (on
-    these songs a little louder than its returns, on average), the copies moved more than the music there asks
-    (validation songs, 16 takes: FID_k with returns 13.65, planned for the mean 12.50; danced anew 12.15)."""
-    out, groups = rank.copy(), {}
-    for bar, source in again.items():
-        while source in again:  # a copy of a copy is danced with the first's figure
-            source = again[source]
-        groups.setdefault(source, [source]).append(bar)
-    for source, bars in groups.items():
-        out[source] = rank[bars].mean()
-    return out
-
-
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
          previous: np.ndarray | None = None, match: FigureMatch | None = None,
-         form: SongForm | None = None, again: dict[int, int] | None = None) -> list[tuple[int, float]]:
+         form: SongForm | None = None) -> list[tuple[int, float]]:
     """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
-    dance's last frame), joined to as a figure's end is. `again` {bar: the bar it copies}: the bars the song's
-    returns dance again."""
-    bars = _Bars(library, grid, onset, rng, style, settings, match, form, again)
+    dance's last frame), joined to as a figure's end is."""
+    bars = _Bars(library, grid, onset, rng, style, settings, match, form)
     cost = bars.first(previous)
     if not np.isfinite(cost).any():
         raise bars.too_short
@@ -404,12 +387,10 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
                 end_s: float | None = None, takes: int = 1, style: str | None = None,
                 settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None,
-                match: MatchModel | None = None, again: list[tuple[float, float]] = ()) -> list[LibraryDance]:
+                match: MatchModel | None = None) -> list[LibraryDance]:
     """`takes` dances to the song's part from `start_s` to `end_s` (default: its end), cut from `library`; the same
     seed gives the same dances. With `kept` (a dance at the library's frame rate and skeleton, two frames or more,
-    that ends at `start_s`) each dance goes on from its last pose: chosen and blended as after a cut. `again`: (bar
-    start, the start of the bar it copies) in song seconds for the bars the song's returns dance again
-    (`returns.bars_again`)."""
+    that ends at `start_s`) each dance goes on from its last pose: chosen and blended as after a cut."""
     end = analysis.duration_s if end_s is None else min(end_s, analysis.duration_s)
     grid = song_grid(analysis, start_s, end)
     rng = np.random.default_rng(seed)
@@ -418,26 +399,13 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     fit = None if match is None else FigureMatch(match, library, analysis.features, bar_beats)
     previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
     form = song_form(analysis) if settings.off_phrase or settings.section_energy else None
-    copies = _grid_copies(grid, again)
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form, copies)
+        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
-
-
-def _grid_copies(grid: Grid, again: list[tuple[float, float]]) -> dict[int, int]:
-    """{grid bar: the grid bar it copies} for the (bar start, source bar start) pairs whose bars both start on a bar
-    of the grid (within PHRASE_TOLERANCE_S)."""
-    starts = np.array([grid.beats[a] for a, _n in grid.bars])
-    out = {}
-    for target_s, source_s in again:
-        bar, source = (int(np.argmin(np.abs(starts - t))) for t in (target_s, source_s))
-        if source < bar and max(abs(starts[bar] - target_s), abs(starts[source] - source_s)) < PHRASE_TOLERANCE_S:
-            out[bar] = source
-    return out
 
 
 def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,

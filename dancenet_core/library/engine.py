@@ -16,10 +16,8 @@ from ..engines.styles import check_style, choose_style, load_style_model
 from ..errors import DanceNetError, GenerationCancelled
 from ..motion import Motion
 from ..music.features import MusicAnalysis
-from ..music.form import song_form
 from ..progress import StageProgress
 from ..request import DanceRequest
-from ..returns import bars_again
 from .choreography import choreograph
 from .match import MatchModel
 from .store import MotionLibrary, library_path, load_built, load_default
@@ -93,9 +91,8 @@ class LibraryEngine:
         start, end = request.part(analysis.duration_s)
         kept = _kept(request, library.fps, end - start)
         match = _load_match() if library.unlabelled else None
-        again = bars_again(song_form(analysis), request.returns, request.section_returns())
         dances = choreograph(library, analysis, request.seed, start + (0.0 if kept is None else kept.duration), end,
-                             request.takes, chosen or None, kept=kept, match=match, again=again)
+                             request.takes, chosen or None, kept=kept, match=match)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
         motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]

@@ -119,31 +119,6 @@ def test_a_join_between_dances_that_turn_different_ways_adds_no_spin():
     assert ends.num_frames == 200 and np.abs(np.diff(heading_frames(ends))[-10:] * fps).max() < 1.0 + 1e-6
 
 
-@pytest.mark.parametrize("mode", ["repeat", "mirror", "anew"])
-def test_the_library_engine_plans_for_the_returns_it_dances_again(monkeypatch, mode):
-    """The engine gives its plan each bar the returns copy and the bar it copies (A2's bars A1's, A3's A1's or
-    A2's), and none when returns are danced anew."""
-    from dancenet_core.library import engine as library_engine
-
-    music = analysis(arranged_features("ABACAB"))
-    form = song_form(music)
-    seen = {}
-
-    def planned(*_args, **kwargs):
-        seen.update(kwargs)
-        raise InterruptedError
-
-    monkeypatch.setattr(library_engine, "choreograph", planned)
-    request = DanceRequest(Path("song.wav"), engine="library", style="any", returns=mode)
-    with pytest.raises(InterruptedError):
-        library_engine.LibraryEngine().dance(request, music, lambda *_a: None, lambda: False)
-    a1, a2 = (s for s in form.sections if s.label == "A" and s.occurrence < 3)
-    if mode == "anew":
-        assert seen["again"] == []
-    else:
-        assert (a2.start_s, a1.start_s) in seen["again"] and len(seen["again"]) >= 3 * a1.bars
-
-
 def test_returns_before_a_continued_dances_join_are_left_as_danced():
     form = song_form(analysis(arranged_features("ABACAB")))
     motion = wandering_motion(form.bar_starts[-1])

@@ -172,25 +172,6 @@ def test_the_dance_follows_the_musics_energy(library: MotionLibrary) -> None:
     assert speed[half:].mean() > speed[:half].mean()
 
 
-def test_a_bar_the_returns_copy_is_planned_for_every_bar_it_is_danced_on(library: MotionLibrary) -> None:
-    """The song's first 4 bars (quiet), copied onto every bar of its loud second half, take figures for the
-    loudness of all the bars they are danced on: they move more than when planned for their own music alone."""
-    music = song(80, 110, loud_from=40)
-    grid = song_grid(music, 0.0, 80.0)
-    starts = [float(grid.beats[a]) for a, _n in grid.bars]
-    half = len(starts) // 2
-    again = [(starts[k], starts[k % 4]) for k in range(half, len(starts))]
-    plain, planned = (choreograph(library, music, seed=0, settings=Settings(noise=0.0), again=a)[0]
-                      for a in ((), again))
-    clip_energy = {name: library.energy[library.beat_clip == c].mean() for c, name in enumerate(library.names)}
-
-    def energy(dance) -> float:  # of the clips the first 4 bars' figures come from
-        return float(np.mean([clip_energy[f["clip"]] for f in dance.report.figures[:4]]))
-
-    assert energy(planned) > 1.05 * energy(plain)
-    assert [f["clip"] for f in planned.report.figures[6:]] == [f["clip"] for f in plain.report.figures[6:]]
-
-
 def test_the_root_path_carries_on_across_cuts(library: MotionLibrary) -> None:
     dance = choreograph(library, song(60, 110), seed=2, settings=Settings(noise=1.0))[0]
     step = np.linalg.norm(np.diff(dance.motion.root_positions[:, [0, 2]], axis=0), axis=-1)
