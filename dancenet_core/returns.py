@@ -136,12 +136,12 @@ def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: t
     heading = Rotation.from_euler("y", np.concatenate([[yaw0], yaw[:-1]])[:, None])
     root[at:at + n] = root[before] * [1.0, 0.0, 1.0] + np.cumsum(heading.apply(steps), axis=0)
     root[at:at + n, 1] = a_root[:, 1] * (1 - w[:, 0]) + b_root[:, 1] * w[:, 0]
-    # the rest of b turned about its last blended frame by what the blend turned less or more than b did
-    if at + n < len(root):
-        turn = Rotation.from_euler("y", yaw[-1] - yaw_b[-1])
-        rest = root[at + n:] - b_root[-1] * [1.0, 0.0, 1.0]
-        root[at + n:] = turn.apply(rest) + root[at + n - 1] * [1.0, 0.0, 1.0]
-        rots[at + n:, 0] = (turn * Rotation.from_rotvec(rots[at + n:, 0])).as_rotvec()
+    if at + n < len(root):  # the rest of b goes on from its last frame, placed where the blend's last stands
+        end = at + n
+        b_on = Motion(np.concatenate([b_rot[-1:], rots[end:]]), np.concatenate([b_root[-1:], root[end:]]), motion.fps,
+                      motion.skeleton)
+        rest = _placed(b_on, 0, Motion(rots[end - 1:end], root[end - 1:end], motion.fps, motion.skeleton))
+        rots[end:], root[end:] = rest.rotations[1:], rest.root_positions[1:]
 
     def lowest(r: np.ndarray, p: np.ndarray) -> np.ndarray:
         return toe_ends(Motion(r, p, motion.fps, motion.skeleton))[..., 1].min(axis=1)
