@@ -117,13 +117,13 @@ def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: t
     w = (x * x * (3 - 2 * x))[:, None]
     qa = Rotation.from_rotvec(a_rot.reshape(-1, 3)).as_quat().reshape(n, -1, 4)
     qb = Rotation.from_rotvec(b_rot.reshape(-1, 3)).as_quat().reshape(n, -1, 4)
-    rots[at:at + n] = _nlerp(qa, qb, w)
+    rots[at:at + n] = _blend(qa, qb, w)
     before = max(at - 1, 0)
     yaw0 = yaw_and_swing(rots[before:before + 1, 0])[0][0]
     (yaw_a, swing_a), (yaw_b, swing_b) = yaw_and_swing(a_rot[:, 0]), yaw_and_swing(b_rot[:, 0])
     yaw_a, yaw_b = (np.unwrap(np.concatenate([[yaw0], y])) for y in (yaw_a, yaw_b))  # from frame at - 1
     yaw = yaw0 + np.cumsum((1 - w[:, 0]) * np.diff(yaw_a) + w[:, 0] * np.diff(yaw_b))
-    swing = _nlerp(Rotation.from_rotvec(swing_a).as_quat()[:, None], Rotation.from_rotvec(swing_b).as_quat()[:, None],
+    swing = _blend(Rotation.from_rotvec(swing_a).as_quat()[:, None], Rotation.from_rotvec(swing_b).as_quat()[:, None],
                    w)[:, 0]
     rots[at:at + n, 0] = (Rotation.from_euler("y", yaw[:, None]) * Rotation.from_rotvec(swing)).as_rotvec()
 
@@ -150,10 +150,29 @@ def _crossfade(motion: Motion, rots: np.ndarray, root: np.ndarray, at: int, a: t
     root[at:at + n, 1] += want - lowest(rots[at:at + n], root[at:at + n])
 
 
+def _blend(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Rotation vectors [N, J, 3] of two runs of quaternions [N, J, 4] blended frame by frame at weights [N, 1]
+    (normalised linear interpolation) without a jump: each run's sign carried on from frame to frame, and `q1`'s
+    set per joint for the whole blend, the short way where the blend weighs both most. The short way chosen frame
+    by frame flips to the other way round at a joint whose two poses are about half a turn apart mid-blend: a
+    jump of up to a full turn in one frame."""
+    def carried(q: np.ndarray) -> np.ndarray:
+        flips = np.concatenate([np.zeros((1, q.shape[1])), (q[1:] * q[:-1]).sum(-1) < 0])
+        return q * np.where(np.cumsum(flips, axis=0) % 2 == 1, -1.0, 1.0)[..., None]
+
+    q0, q1 = carried(q0), carried(q1)
+    side = ((q0 * q1).sum(-1) * w * (1 - w)).sum(0)  # [J]
+    return _mixed(q0, np.where(side[:, None] < 0, -q1, q1), w)
+
+
 def _nlerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Rotation vectors [N, J, 3] between quaternions [N, J, 4] at weights [N, 1] (normalised linear
-    interpolation, the short way round)."""
-    q1 = np.where((q0 * q1).sum(-1, keepdims=True) < 0, -q1, q1)
+    interpolation, the short way round: for neighbouring frames)."""
+    return _mixed(q0, np.where((q0 * q1).sum(-1, keepdims=True) < 0, -q1, q1), w)
+
+
+def _mixed(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Rotation vectors [N, J, 3] of the normalised weighted sums of quaternions [N, J, 4] at weights [N, 1]."""
     mixed = q0 * (1 - w[:, :, None]) + q1 * w[:, :, None]
     return Rotation.from_quat(mixed.reshape(-1, 4)).as_rotvec().reshape(q0.shape[0], -1, 3)
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dancenet_core.evaluation.form import body_poses, return_likeness
 from dancenet_core.generate import generate_dance
@@ -117,6 +118,21 @@ def test_a_join_between_dances_that_turn_different_ways_adds_no_spin():
     assert np.allclose(rate[-50:], -1.0)
     ends = carry_on(turning(1.0), turning(-1.0), 190)  # the crossfade runs to the dance's last frame
     assert ends.num_frames == 200 and np.abs(np.diff(heading_frames(ends))[-10:] * fps).max() < 1.0 + 1e-6
+
+
+def test_a_join_between_poses_half_a_turn_apart_turns_smoothly():
+    """An elbow held still in one dance and turning through half a turn from it in the other (0.5 rad/s): through
+    the crossfade it turns smoothly (choosing the short way frame by frame flipped it the other way round mid-blend,
+    nearly a full turn in one frame)."""
+    fps, t = 25.0, np.arange(200) / 25.0
+    held = Motion(np.zeros((200, 55, 3)), np.tile([0.0, 0.9, 0.0], (200, 1)), fps)
+    rot = np.zeros((200, 55, 3))
+    rot[:, 18, 0] = np.pi - 0.3 + 0.5 * (t - t[100])  # half a turn from the held pose 0.6 s into the blend
+    joined = carry_on(held, Motion(rot, held.root_positions, fps), 100)
+    elbow = Rotation.from_rotvec(joined.rotations[:, 18])
+    step = (elbow[1:] * elbow[:-1].inv()).magnitude()
+    # Half a turn blended over 1.2 s with smoothstep weights: at most about 0.22 rad a frame, plus the dance's 0.02.
+    assert step.max() < 0.3
 
 
 def test_returns_before_a_continued_dances_join_are_left_as_danced():
