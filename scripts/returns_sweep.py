@@ -28,6 +28,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -64,11 +66,16 @@ def main() -> int:
                                     if p.style in style_net.styles], fps, style_net)
     forms = song_forms(val, data)
     for p in val:
-        form = forms[p.seq][0]
+        form, start = forms[p.seq]
         copies = returns._copies(form, "repeat", {})
+        end = start + len(p.motion) / fps  # the dance covers this span of the song; copies read and write within it
+        danced = [(a, e) for a, e, s, _h in copies if form.bar_starts[s] >= start]
         print(json.dumps({"song": p.seq, "sections": " ".join(f"{s.name}:{s.bars}" for s in form.sections),
                           "bars": len(form.bar_starts) - 1, "copied_bars": int(sum(e - a for a, e, _s, _h in copies)),
-                          "copies": len(copies)}), flush=True)
+                          "copies": len(copies), "danced_bars": int(np.sum((form.bar_starts[:-1] >= start)
+                                                                           & (form.bar_starts[1:] <= end))),
+                          "copied_danced_bars": int(sum(np.sum(form.bar_starts[a + 1:e + 1] <= end)
+                                                        for a, e in danced))}), flush=True)
     # Takes 0..takes-1 are measured; take k + takes of the same song lends its frames to take k (validation).
     library = users_library(train, bundle.skeleton, fps)
     dances = {"DanceNet": [generate_for_pair(bundle, p, k, DEFAULT_TEMPERATURE, True, beats_s=beats[p.seq])[0]

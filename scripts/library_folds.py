@@ -1,0 +1,106 @@
+"""The motion-library engine measured on every training song, held out by song: the training songs (the validation
+songs among them) fall into `--folds` folds, and each fold's songs are danced from a library of the other folds'
+dances (BVH in style folders, without music, as a user's) and measured against the other folds' real dances, as
+`dancenet evaluate` measures the test songs. Eight times the validation songs' count, for choosing the library's
+settings where five songs leave a choice to one song's luck; never the test songs.
+
+Rows, the same dances rewritten after they are danced:
+- danced anew: the dances as they are;
+- returns danced again: `returns.dance_returns` (the default, `--returns repeat`);
+- returns from another take: the copies as the default makes them, their frames read from another take of the
+  same song (takes never measured themselves): everything a return does but repeat a stretch of its own dance.
+
+Prints each fold's figures and their mean over the folds, with FID_k split into its two terms (the distance
+between the means and the covariances' part), so a change shows whether it moves the dances' mean or their spread.
+
+    OMP_NUM_THREADS=1 python scripts/library_folds.py [--takes 4] [--folds 5] [--data ../shared/data]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+COLUMNS = ("fid_k", "fid_g", "beat_align_score", "style_consistency", "return_likeness")
+SEED = 0  # the songs' order before they are dealt into folds
+
+
+def main() -> int:
+    from dancenet_core import returns
+    from dancenet_core.data.dance_with_melody import read_manifest
+    from dancenet_core.environment import default_data_dir
+    from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segment_features
+    from dancenet_core.evaluation.form import song_forms
+    from dancenet_core.evaluation.library_row import library_row, users_library
+    from dancenet_core.evaluation.metrics import normalize_by
+    from dancenet_core.evaluation.motion_style import MotionStyleModel
+    from dancenet_core.evaluation.test_split import split_with_beats
+    from dancenet_core.music.features import analyze_music
+    from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
+    from dancenet_core.representation import decode
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--takes", type=int, default=4)
+    parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--data", type=Path, default=None)
+    args = parser.parse_args()
+    data, fps, takes = args.data or default_data_dir(), 25.0, args.takes
+    split, pairs, _beats = split_with_beats(data, part="validation")
+    style_net = MotionStyleModel.load()
+    skeleton = DanceNetBundle.load(DEFAULT_BUNDLE).skeleton
+    songs = [s for s in split["train"] if pairs[s].style in style_net.styles]
+    order = list(np.random.default_rng(SEED).permutation(sorted(songs)))
+    folds = [order[f::args.folds] for f in range(args.folds)]
+    seqs = {s.seq: s for s in read_manifest(data)}
+    beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in songs}
+    forms = song_forms([pairs[s] for s in songs], data)
+    real = {s: decode(pairs[s].motion, fps, skeleton).positions() for s in songs}
+    sample = returns._sample
+
+    def rewritten(motion, donor, seq: str, how: str):
+        if how == "anew":
+            return motion
+        try:
+            if how == "returns from another take":
+                returns._sample = lambda _motion, frames: sample(donor, frames)
+            return returns.dance_returns(motion, *forms[seq], "repeat")[0]
+        finally:
+            returns._sample = sample
+
+    hows = ("anew", "repeat", "returns from another take")
+    per_fold: dict[str, list[dict]] = {how: [] for how in hows}
+    for f, fold in enumerate(folds):
+        rest = [s for s in songs if s not in fold]
+        reference = reference_features([real[s] for s in rest], fps, style_net)
+        library = users_library([pairs[s] for s in rest], skeleton, fps)
+        made = library_row(library, [pairs[s] for s in fold], data, fps, 2 * takes)[0]  # take k + takes lends
+        measured = [(i * 2 * takes + k, seq) for i, seq in enumerate(fold) for k in range(takes)]
+        rows = [DanceSet(how, how, [rewritten(made[j], made[j + takes], seq, how) for j, seq in measured],
+                         [pairs[seq].style for _j, seq in measured], [beats[seq] for _j, seq in measured], {},
+                         [seq for _j, seq in measured]) for how in hows]
+        table = measure(rows, reference, fps, style_net, forms)
+        for row in rows:
+            gen = segment_features([m.positions() for m in row.dances], row.styles, fps, style_net)["k"]
+            keep = reference["k"].std(axis=0) > 1e-6
+            r, g = (normalize_by(reference["k"][:, keep], x[:, keep]) for x in (reference["k"], gen))
+            mean_term = float(((r.mean(axis=0) - g.mean(axis=0)) ** 2).sum())
+            figures = {k: table[row.name][k] for k in COLUMNS} | {"fid_k_mean_term": mean_term}
+            per_fold[row.name].append(figures)
+            print(json.dumps({"fold": f, "songs": fold, "row": row.name}
+                             | {k: round(v, 4) for k, v in figures.items() if v is not None}), flush=True)
+    summary = {how: {k: round(float(np.mean([d[k] for d in rows if d[k] is not None])), 4)
+                     for k in (*COLUMNS, "fid_k_mean_term") if any(d[k] is not None for d in rows)}
+               | {"fid_k_per_fold": [round(d["fid_k"], 2) for d in rows]} for how, rows in per_fold.items()}
+    print(json.dumps({"folds": folds, "takes": takes, "mean_over_folds": summary}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
