@@ -10,15 +10,20 @@ Rows, the same dances rewritten after they are danced:
 - returns from another take: the copies as the default makes them, their frames read from another take of the
   same song (takes never measured themselves): everything a return does but repeat a stretch of its own dance.
 
+`--set NAME=VALUE` dances with a plan setting of `library.choreography.Settings` changed (several may be given).
+At 4 takes a mean over the folds moves by about 2 FID_k with the seeds (docs/experiments.md): compare settings
+that differ by less than that with 8 takes or more.
 Prints each fold's figures and their mean over the folds, with FID_k split into its two terms (the distance
 between the means and the covariances' part), so a change shows whether it moves the dances' mean or their spread.
 
-    OMP_NUM_THREADS=1 python scripts/library_folds.py [--takes 4] [--folds 5] [--data ../shared/data]
+    OMP_NUM_THREADS=1 python scripts/library_folds.py [--takes 4] [--folds 5] [--set energy_span=0.7]
+        [--data ../shared/data]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -42,6 +47,7 @@ def main() -> int:
     from dancenet_core.evaluation.metrics import normalize_by
     from dancenet_core.evaluation.motion_style import MotionStyleModel
     from dancenet_core.evaluation.test_split import split_with_beats
+    from dancenet_core.library.choreography import DEFAULT_SETTINGS
     from dancenet_core.music.features import analyze_music
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.representation import decode
@@ -49,8 +55,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--takes", type=int, default=4)
     parser.add_argument("--folds", type=int, default=5)
+    parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--data", type=Path, default=None)
     args = parser.parse_args()
+    changed = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    settings = dataclasses.replace(DEFAULT_SETTINGS, **changed)
     data, fps, takes = args.data or default_data_dir(), 25.0, args.takes
     split, pairs, _beats = split_with_beats(data, part="validation")
     style_net = MotionStyleModel.load()
@@ -80,7 +89,8 @@ def main() -> int:
         rest = [s for s in songs if s not in fold]
         reference = reference_features([real[s] for s in rest], fps, style_net)
         library = users_library([pairs[s] for s in rest], skeleton, fps)
-        made = library_row(library, [pairs[s] for s in fold], data, fps, 2 * takes)[0]  # take k + takes lends
+        made = library_row(library, [pairs[s] for s in fold], data, fps, 2 * takes,  # take k + takes lends
+                           settings=settings)[0]
         measured = [(i * 2 * takes + k, seq) for i, seq in enumerate(fold) for k in range(takes)]
         rows = [DanceSet(how, how, [rewritten(made[j], made[j + takes], seq, how) for j, seq in measured],
                          [pairs[seq].style for _j, seq in measured], [beats[seq] for _j, seq in measured], {},
@@ -98,7 +108,7 @@ def main() -> int:
     summary = {how: {k: round(float(np.mean([d[k] for d in rows if d[k] is not None])), 4)
                      for k in (*COLUMNS, "fid_k_mean_term") if any(d[k] is not None for d in rows)}
                | {"fid_k_per_fold": [round(d["fid_k"], 2) for d in rows]} for how, rows in per_fold.items()}
-    print(json.dumps({"folds": folds, "takes": takes, "mean_over_folds": summary}, indent=1))
+    print(json.dumps({"folds": folds, "takes": takes, "settings": changed, "mean_over_folds": summary}, indent=1))
     return 0
 
 
