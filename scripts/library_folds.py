@@ -58,7 +58,13 @@ def main() -> int:
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
     parser.add_argument("--data", type=Path, default=None)
     args = parser.parse_args()
-    changed = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    names = {f.name for f in dataclasses.fields(DEFAULT_SETTINGS)}
+    try:
+        changed = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
+    except ValueError:
+        parser.error("--set takes NAME=NUMBER, e.g. --set cut=0.1")
+    if set(changed) - names:
+        parser.error(f"--set: no plan setting {sorted(set(changed) - names)}; the settings: {', '.join(sorted(names))}")
     settings = dataclasses.replace(DEFAULT_SETTINGS, **changed)
     data, fps, takes = args.data or default_data_dir(), 25.0, args.takes
     split, pairs, _beats = split_with_beats(data, part="validation")
