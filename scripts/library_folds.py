@@ -7,8 +7,10 @@ settings where five songs leave a choice to one song's luck; never the test song
 Rows, the same dances rewritten after they are danced:
 - danced anew: the dances as they are;
 - returns danced again: `returns.dance_returns` (the default, `--returns repeat`);
+- joins alone: every copy's joins and placement, its frames the same bars of another take of the same song
+  (takes never measured themselves): nothing copied from elsewhere in the song;
 - returns from another take: the copies as the default makes them, their frames read from another take of the
-  same song (takes never measured themselves): everything a return does but repeat a stretch of its own dance.
+  same song: everything a return does but repeat a stretch of its own dance.
 
 `--set NAME=VALUE` dances with a plan setting of `library.choreography.Settings` changed (several may be given).
 At 4 takes a mean over the folds moves by about 2 FID_k with the seeds (docs/experiments.md): compare settings
@@ -77,19 +79,21 @@ def main() -> int:
     beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in songs}
     forms = song_forms([pairs[s] for s in songs], data)
     real = {s: decode(pairs[s].motion, fps, skeleton).positions() for s in songs}
-    sample = returns._sample
+    sample, bar_map = returns._sample, returns._bar_map
 
     def rewritten(motion, donor, seq: str, how: str):
         if how == "anew":
             return motion
         try:
-            if how == "returns from another take":
+            if how != "repeat":
                 returns._sample = lambda _motion, frames: sample(donor, frames)
+            if how == "joins alone":
+                returns._bar_map = lambda frames, _target, _source: frames
             return returns.dance_returns(motion, *forms[seq], "repeat")[0]
         finally:
-            returns._sample = sample
+            returns._sample, returns._bar_map = sample, bar_map
 
-    hows = ("anew", "repeat", "returns from another take")
+    hows = ("anew", "repeat", "joins alone", "returns from another take")
     per_fold: dict[str, list[dict]] = {how: [] for how in hows}
     for f, fold in enumerate(folds):
         rest = [s for s in songs if s not in fold]
