@@ -43,7 +43,8 @@ def main() -> int:
     from dancenet_core import returns
     from dancenet_core.data.dance_with_melody import read_manifest
     from dancenet_core.environment import default_data_dir
-    from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segment_features
+    from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segments
+    from dancenet_core.evaluation.dance_features import kinetic_features, smpl24_positions
     from dancenet_core.evaluation.form import song_forms
     from dancenet_core.evaluation.library_row import library_row, users_library
     from dancenet_core.evaluation.metrics import normalize_by
@@ -107,7 +108,9 @@ def main() -> int:
                          [seq for _j, seq in measured]) for how in hows]
         table = measure(rows, reference, fps, style_net, forms)
         for row in rows:
-            gen = segment_features([m.positions() for m in row.dances], row.styles, fps, style_net)["k"]
+            # kinetic features alone (`measure` computed them with the style net's, and returns neither)
+            gen = np.stack([kinetic_features(smpl24_positions(seg), fps) for m in row.dances
+                            for seg in segments(m.positions(), fps)])
             keep = reference["k"].std(axis=0) > 1e-6
             r, g = (normalize_by(reference["k"][:, keep], x[:, keep]) for x in (reference["k"], gen))
             mean_term = float(((r.mean(axis=0) - g.mean(axis=0)) ** 2).sum())
