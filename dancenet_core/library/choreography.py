@@ -81,6 +81,11 @@ class Settings:
     # follow the section's loudness.
     off_phrase: float = 0.0
     section_energy: float = 0.0
+    # A cut between two stretches that both move some joint far more than the library's dancers usually do (the
+    # same joint, the same way: up and down or over the floor) costs this much per unit of the product of how far
+    # past one standard deviation each lies (`stretch_kinetics`), so that the plan does not lay the library's
+    # extremes back to back where no dancer did.
+    pile: float = 0.05
 
 
 DEFAULT_SETTINGS = Settings()
@@ -225,6 +230,31 @@ def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
     return np.array([ratio[a : b + 1].max() for a, b in zip(lo, hi, strict=True)])
 
 
+def stretch_kinetics(library: MotionLibrary, beats: int) -> tuple[np.ndarray, np.ndarray]:
+    """[B, 2 x body joints] twice: per beat of the library, each body joint's mean squared speed over the floor and
+    up and down over the `beats` beats after it (within its clip) and over those before it, as standard deviations
+    past the median of all such stretches in the library, less one (0 where within one, and for a stretch of under
+    half as many beats, cut short by its clip's end or start)."""
+    moves = library.joint_moves * library.fps
+    power = np.concatenate([moves[..., 0] ** 2 + moves[..., 2] ** 2, moves[..., 1] ** 2], axis=1)
+    csum = np.concatenate([np.zeros((1, power.shape[1])), np.cumsum(power, axis=0)])
+    frame = np.floor(library.beats).astype(np.int64)
+    clip = library.beat_clip
+    index = np.arange(len(frame))
+    first_beat = np.searchsorted(clip, clip, side="left")
+    end_beat = np.searchsorted(clip, clip, side="right")  # one past the clip's last beat
+    ahead, behind = np.minimum(index + beats, end_beat - 1), np.maximum(index - beats, first_beat)
+
+    def mean(a: np.ndarray, b: np.ndarray, covered: np.ndarray) -> np.ndarray:
+        power_mean = (csum[frame[b]] - csum[frame[a]]) / np.maximum(frame[b] - frame[a], 1)[:, None]
+        return np.where((2 * covered >= beats)[:, None], power_mean, np.nan)
+
+    after, before = mean(index, ahead, ahead - index), mean(behind, index, index - behind)
+    centre, spread = np.nanmedian(after, axis=0), np.maximum(np.nanstd(after, axis=0), 1e-9)
+    return tuple(np.nan_to_num(np.maximum((x - centre) / spread - 1.0, 0.0)).astype(np.float32)
+                 for x in (after, before))
+
+
 def _ranks(x: np.ndarray) -> np.ndarray:
     """Each value's rank as a fraction in [0, 1] (ties share their mean rank: all equal, all 0.5)."""
     if len(x) < 2:
@@ -277,6 +307,7 @@ class _Bars:
             loud = (1 - settings.section_energy) * loud + settings.section_energy * means
         self.music_rank = _ranks(loud)
         self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
+        self.kinetics = stretch_kinetics(library, grid.meter) if settings.pile else None
         self.entry = entry_steps(library, starts)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
         self.cache: dict[int, tuple] = {}
@@ -295,7 +326,11 @@ class _Bars:
             if self.scale is None:
                 self.scale = float(np.median(d)) or 1.0
             k = np.minimum(np.searchsorted(uend, starts), len(uend) - 1)
-            cut = np.ascontiguousarray((d / self.scale + self.settings.cut).T, dtype=np.float32)
+            d = d / self.scale + self.settings.cut
+            if self.kinetics is not None:
+                after, before = self.kinetics
+                d = d + self.settings.pile * (before[at] @ after[ustarts].T)
+            cut = np.ascontiguousarray(d.T, dtype=np.float32)
             self.cache[n_prev] = (end_of, cut, np.where(uend[k] == starts, k, -1))
         return self.cache[n_prev]
 

@@ -83,14 +83,19 @@ class MotionLibrary:
         return Motion(self.rotations[a:b], self.root_positions[a:b], self.fps, self.skeleton)
 
     @cached_property
+    def joint_moves(self) -> np.ndarray:
+        """[N, body joints, 3]: each body joint's move (m) since the frame before, 0 at a clip's first frame."""
+        moves = []
+        for c in range(self.num_clips):
+            pos = self.clip(c).positions()[:, :BODY_JOINTS]
+            moves += [np.zeros((1, BODY_JOINTS, 3)), np.diff(pos, axis=0)]
+        return np.concatenate(moves)
+
+    @cached_property
     def joint_steps(self) -> np.ndarray:
         """[N, body joints]: how far (m) each body joint moved since the frame before, 0 at a clip's first frame:
         how fast the library's own dancers move, which its cuts are held to (choreography, evaluation)."""
-        steps = []
-        for c in range(self.num_clips):
-            pos = self.clip(c).positions()[:, :BODY_JOINTS]
-            steps += [np.zeros((1, BODY_JOINTS)), np.linalg.norm(np.diff(pos, axis=0), axis=-1)]
-        return np.concatenate(steps)
+        return np.linalg.norm(self.joint_moves, axis=-1)
 
     @cached_property
     def step_p99(self) -> np.ndarray:
