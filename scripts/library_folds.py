@@ -14,12 +14,12 @@ Rows, the same dances rewritten after they are danced:
 
 `--set NAME=VALUE` dances with a plan setting of `library.choreography.Settings` changed (several may be given).
 At 4 takes a mean over the folds moves by about 2 FID_k with the seeds (docs/experiments.md): compare settings
-that differ by less than that with 8 takes or more.
+that differ by less than that with 8 takes or more, and again with other seeds (`--first-seed 8`).
 Prints each fold's figures and their mean over the folds, with FID_k split into its two terms (the distance
 between the means and the covariances' part), so a change shows whether it moves the dances' mean or their spread.
 
-    OMP_NUM_THREADS=1 python scripts/library_folds.py [--takes 4] [--folds 5] [--set energy_span=0.7]
-        [--data ../shared/data]
+    OMP_NUM_THREADS=1 python scripts/library_folds.py [--takes 4] [--folds 5] [--set pile=0]
+        [--first-seed 0] [--data ../shared/data]
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ def main() -> int:
     parser.add_argument("--takes", type=int, default=4)
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--first-seed", type=int, default=0, help="take k is danced with seed FIRST_SEED + k")
     parser.add_argument("--data", type=Path, default=None)
     args = parser.parse_args()
     names = {f.name for f in dataclasses.fields(DEFAULT_SETTINGS)}
@@ -101,7 +102,7 @@ def main() -> int:
         reference = reference_features([real[s] for s in rest], fps, style_net)
         library = users_library([pairs[s] for s in rest], skeleton, fps)
         made = library_row(library, [pairs[s] for s in fold], data, fps, 2 * takes,  # take k + takes lends
-                           settings=settings)[0]
+                           settings=settings, first_seed=args.first_seed)[0]
         measured = [(i * 2 * takes + k, seq) for i, seq in enumerate(fold) for k in range(takes)]
         rows = [DanceSet(how, how, [rewritten(made[j], made[j + takes], seq, how) for j, seq in measured],
                          [pairs[seq].style for _j, seq in measured], [beats[seq] for _j, seq in measured], {},

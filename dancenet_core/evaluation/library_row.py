@@ -76,12 +76,12 @@ def users_library(pairs: list[PairedSequence], skeleton: Skeleton, fps: float) -
 
 
 def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Path, fps: float, takes: int,
-                hide_styles: bool = False, match: MatchModel | None = None, settings: Settings = DEFAULT_SETTINGS
-                ) -> tuple[list, list[str], list[np.ndarray], dict]:
-    """Dances from `library` (take k with seed k) to every test sequence's song span, their styles and beats (dance
-    time), and the engine's own figures: per dance and over all. `hide_styles`: the library's clips danced without
-    their style labels (a folder of unsorted clips), `match` the plan's learned match of music and movement; the
-    share of frames from clips of the song's style is measured either way."""
+                hide_styles: bool = False, match: MatchModel | None = None, settings: Settings = DEFAULT_SETTINGS,
+                first_seed: int = 0) -> tuple[list, list[str], list[np.ndarray], dict]:
+    """Dances from `library` (take k with seed first_seed + k) to every test sequence's song span, their styles and
+    beats (dance time), and the engine's own figures: per dance and over all. `hide_styles`: the library's clips
+    danced without their style labels (a folder of unsorted clips), `match` the plan's learned match of music and
+    movement; the share of frames from clips of the song's style is measured either way."""
     style_of = dict(zip(library.names, library.styles, strict=True))
     if hide_styles:
         library = hidden(library)
@@ -93,8 +93,8 @@ def library_row(library: MotionLibrary, test: list[PairedSequence], data_dir: Pa
         music = analyze_music(seqs[p.seq].audio)
         start = seqs[p.seq].music_offset_s
         for take in range(takes):
-            d = choreograph(library, music, take, start, start + len(p.motion) / fps, style=p.style, match=match,
-                            settings=settings)[0]
+            d = choreograph(library, music, first_seed + take, start, start + len(p.motion) / fps, style=p.style,
+                            match=match, settings=settings)[0]
             pos = d.motion.positions()[:, :BODY_JOINTS]
             step = (np.linalg.norm(np.diff(pos, axis=0), axis=-1) / p99).max(axis=1)
             near = np.zeros(len(step), bool)
