@@ -14,7 +14,9 @@
    where one figure ends and the next starts (0 where the next figure is the clip's own continuation), and, at a
    cut, a steep cost where some joint of the new figure, as fast as the warp plays it, steps further in the
    frames the cut blends than `CALM_LIMIT` of that joint's 99th percentile in the library (cuts are made where
-   the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`). A clip is only tried at the
+   the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`), and a cost where the bars
+   either side of a cut both move some joint far more than the library's dancers usually do (`stretch_kinetics`),
+   so that the loudest bars do not get the library's extremes laid back to back. A clip is only tried at the
    ratios that can play it near its speed (`RATIO_MARGIN`), so there are about as many figures as starts. The
    whole table is [bars, figures] and each step a vectorised min over [figure ends, figure starts]: a 3-minute
    song on a 30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
