@@ -237,9 +237,8 @@ def stretch_kinetics(library: MotionLibrary, beats: int) -> tuple[np.ndarray, np
     up and down over the `beats` beats after it (within its clip) and over those before it, as standard deviations
     past the median of all such stretches in the library, less one (0 where within one, and for a stretch of under
     half as many beats, cut short by its clip's end or start)."""
-    moves = library.joint_moves * library.fps
-    power = np.concatenate([moves[..., 0] ** 2 + moves[..., 2] ** 2, moves[..., 1] ** 2], axis=1)
-    csum = np.concatenate([np.zeros((1, power.shape[1])), np.cumsum(power, axis=0)])
+    power = library.joint_motion[1]
+    csum = np.concatenate([np.zeros((1, power.shape[1])), np.cumsum(power, axis=0, dtype=np.float64)])
     frame = np.floor(library.beats).astype(np.int64)
     clip = library.beat_clip
     index = np.arange(len(frame))

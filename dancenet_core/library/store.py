@@ -83,19 +83,24 @@ class MotionLibrary:
         return Motion(self.rotations[a:b], self.root_positions[a:b], self.fps, self.skeleton)
 
     @cached_property
-    def joint_moves(self) -> np.ndarray:
-        """[N, body joints, 3]: each body joint's move (m) since the frame before, 0 at a clip's first frame."""
-        moves = []
+    def joint_motion(self) -> tuple[np.ndarray, np.ndarray]:
+        """How each body joint moved since the frame before, 0 at a clip's first frame, from one forward-kinematics
+        pass: its step (m, [N, body joints]) and its squared speed over the floor, then up and down ((m/s)^2,
+        float32, [N, 2 x body joints])."""
+        steps, power = [], []
         for c in range(self.num_clips):
-            pos = self.clip(c).positions()[:, :BODY_JOINTS]
-            moves += [np.zeros((1, BODY_JOINTS, 3)), np.diff(pos, axis=0)]
-        return np.concatenate(moves)
+            move = np.diff(self.clip(c).positions()[:, :BODY_JOINTS], axis=0)
+            speed2 = (move * self.fps) ** 2
+            steps += [np.zeros((1, BODY_JOINTS)), np.linalg.norm(move, axis=-1)]
+            power += [np.zeros((1, 2 * BODY_JOINTS), np.float32),
+                      np.concatenate([speed2[..., 0] + speed2[..., 2], speed2[..., 1]], axis=1).astype(np.float32)]
+        return np.concatenate(steps), np.concatenate(power)
 
-    @cached_property
+    @property
     def joint_steps(self) -> np.ndarray:
         """[N, body joints]: how far (m) each body joint moved since the frame before, 0 at a clip's first frame:
         how fast the library's own dancers move, which its cuts are held to (choreography, evaluation)."""
-        return np.linalg.norm(self.joint_moves, axis=-1)
+        return self.joint_motion[0]
 
     @cached_property
     def step_p99(self) -> np.ndarray:
