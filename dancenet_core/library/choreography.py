@@ -282,7 +282,7 @@ class _Bars:
 
     def __init__(self, library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
                  style: str | None, settings: Settings, match: FigureMatch | None,
-                 form: SongForm | None = None) -> None:
+                 form: SongForm | None = None, kinetics: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.library, self.grid, self.rng, self.settings, self.match = library, grid, rng, settings, match
         starts, ratios = self.starts, self.ratios = figure_states(library, grid, style)
         self.nb = nb = len(library.beats)
@@ -308,7 +308,9 @@ class _Bars:
             loud = (1 - settings.section_energy) * loud + settings.section_energy * means
         self.music_rank = _ranks(loud)
         self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
-        self.kinetics = stretch_kinetics(library, grid.meter) if settings.pile else None
+        if kinetics is None and settings.pile:
+            kinetics = stretch_kinetics(library, grid.meter)
+        self.kinetics = kinetics if settings.pile else None
         self.entry = entry_steps(library, starts)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
         self.cache: dict[int, tuple] = {}
@@ -388,12 +390,14 @@ def _form_bars(form: SongForm | None, bar_starts: np.ndarray) -> tuple[np.ndarra
 def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
          style: str | None = None, settings: Settings = DEFAULT_SETTINGS,
          previous: np.ndarray | None = None, match: FigureMatch | None = None,
-         form: SongForm | None = None) -> list[tuple[int, float]]:
+         form: SongForm | None = None, kinetics: tuple[np.ndarray, np.ndarray] | None = None
+         ) -> list[tuple[int, float]]:
     """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
-    dance's last frame), joined to as a figure's end is."""
-    bars = _Bars(library, grid, onset, rng, style, settings, match, form)
+    dance's last frame), joined to as a figure's end is. `kinetics`: `stretch_kinetics(library, grid.meter)`,
+    computed here when not given (the same for every take of a song)."""
+    bars = _Bars(library, grid, onset, rng, style, settings, match, form, kinetics)
     cost = bars.first(previous)
     if not np.isfinite(cost).any():
         raise bars.too_short
@@ -435,9 +439,10 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     fit = None if match is None else FigureMatch(match, library, analysis.features, bar_beats)
     previous = None if kept is None else frame_features(kept[-8:])[0][-1]  # its last frame, its speed and feet
     form = song_form(analysis) if settings.off_phrase or settings.section_energy else None
+    kinetics = stretch_kinetics(library, grid.meter) if settings.pile else None
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form)
+        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
