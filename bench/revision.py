@@ -19,10 +19,30 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 ENGINES = ("dancenet", "library")
+
+
+@contextmanager
+def worktree(rev: str) -> Iterator[tuple[str, Path]]:
+    """(REV's commit, a detached `git worktree` of it in a temporary folder), removed afterwards whatever happens; a
+    revision this repository lacks is a one-line error."""
+    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", "--quiet", f"{rev}^{{commit}}"],
+                            capture_output=True, text=True).stdout.strip()
+    if not commit:
+        raise SystemExit(f"no revision {rev!r} in {REPO}; give a commit, tag or branch of this repository")
+    with tempfile.TemporaryDirectory(prefix="dancenet-revision-") as tmp:
+        tree = Path(tmp) / "rev"
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "--quiet", str(tree), commit],
+                       check=True)
+        try:
+            yield commit, tree
+        finally:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(tree)], check=True)
 
 
 def timed(song: Path) -> dict[str, float]:
@@ -50,26 +70,16 @@ def main() -> int:
     p.add_argument("rev", help="the revision to time beside this checkout")
     p.add_argument("--rounds", type=int, default=2)
     args = p.parse_args()
-    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", "--quiet", f"{args.rev}^{{commit}}"],
-                            capture_output=True, text=True).stdout.strip()
-    if not commit:
-        p.error(f"no revision {args.rev!r} in {REPO}")
-    with tempfile.TemporaryDirectory(prefix="dancenet-revision-") as tmp:
+    with worktree(args.rev) as (commit, tree), tempfile.TemporaryDirectory(prefix="dancenet-revision-") as tmp:
         d = Path(tmp)
         song, kind = three_minute_song(d)
-        tree = d / "rev"
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "--quiet", str(tree), commit],
-                       check=True)
-        try:
-            runs: dict[str, list[dict[str, float]]] = {"rev": [], "this": []}
-            for _ in range(args.rounds):
-                for name, root in (("rev", tree), ("this", REPO)):
-                    env = os.environ | {"PYTHONPATH": str(root), "DANCENET_CACHE": str(d / f"cache_{name}")}
-                    out = subprocess.run([sys.executable, __file__, "--time", str(song)], env=env, cwd=root,
-                                         check=True, capture_output=True, text=True).stdout
-                    runs[name].append(json.loads(out.splitlines()[-1]))
-        finally:
-            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(tree)], check=True)
+        runs: dict[str, list[dict[str, float]]] = {"rev": [], "this": []}
+        for _ in range(args.rounds):
+            for name, root in (("rev", tree), ("this", REPO)):
+                env = os.environ | {"PYTHONPATH": str(root), "DANCENET_CACHE": str(d / f"cache_{name}")}
+                out = subprocess.run([sys.executable, __file__, "--time", str(song)], env=env, cwd=root,
+                                     check=True, capture_output=True, text=True).stdout
+                runs[name].append(json.loads(out.splitlines()[-1]))
     result: dict = {"rev": args.rev, "commit": commit, "song": kind}
     for engine in ENGINES:
         rev, this = (min(r[engine] for r in runs[name]) for name in ("rev", "this"))

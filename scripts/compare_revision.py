@@ -53,7 +53,9 @@ def dance(jobs: Path, out: Path) -> None:
 
 
 def main() -> int:
-    sys.path.insert(0, str(ROOT))
+    sys.path[:0] = [str(ROOT), str(ROOT / "bench")]
+    from revision import worktree
+
     from dancenet_core.atomic import write_text
     from dancenet_core.bvh import write_bvh
     from dancenet_core.data.dance_with_melody import read_manifest
@@ -73,10 +75,6 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "compare_revision")
     parser.add_argument("--data", type=Path, default=None)
     args = parser.parse_args()
-    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{args.rev}^{{commit}}"],
-                            capture_output=True, text=True).stdout.strip()
-    if not commit:
-        parser.error(f"no revision {args.rev!r} in {ROOT}; give a commit, tag or branch of this repository")
     if args.takes < 2 or args.takes % 2:
         parser.error("--takes must be even (the spread is measured on pairs of takes)")
     data, fps = args.data or default_data_dir(), 25.0
@@ -91,7 +89,7 @@ def main() -> int:
     songs = [p.seq for p in test for _ in range(args.takes)]
     styles = [p.style for p in test for _ in range(args.takes)]
     song_beats = [beats[p.seq] for p in test for _ in range(args.takes)]
-    with tempfile.TemporaryDirectory() as tmp:
+    with worktree(args.rev) as (commit, tree), tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "library"
         for p in train:
             (folder / p.style).mkdir(parents=True, exist_ok=True)
@@ -102,22 +100,16 @@ def main() -> int:
                 {"engine": engine, "song": str(seqs[p.seq].audio), "style": p.style, "seed": k,
                  "start_s": seqs[p.seq].music_offset_s, "end_s": seqs[p.seq].music_offset_s + len(p.motion) / fps}
                 for p in test for k in range(args.takes)]}))
-            for name, tree in ((args.rev, Path(tmp) / "rev"), ("this checkout", ROOT)):
-                if tree != ROOT and not tree.exists():
-                    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree),
-                                    commit], check=True)
-                saved = Path(tmp) / f"{engine}_{tree.name}.npz"
+            for name, root, tag in ((args.rev, tree, "rev"), ("this checkout", ROOT, "this")):
+                saved = Path(tmp) / f"{engine}_{tag}.npz"
                 print(f"{engine}: {name} dancing {len(test) * args.takes} dances", flush=True)
-                env = {**os.environ, "PYTHONPATH": str(tree), "DANCENET_CACHE": str(Path(tmp) / f"cache_{tree.name}")}
+                env = {**os.environ, "PYTHONPATH": str(root), "DANCENET_CACHE": str(Path(tmp) / f"cache_{tag}")}
                 subprocess.run([sys.executable, __file__, "--dance", str(jobs), str(saved)], env=env, check=True,
-                               cwd=tree)
+                               cwd=root)
                 z = np.load(saved)
                 dances = [Motion(z[f"rot{i}"], z[f"root{i}"], fps, skeleton) for i in range(len(songs))]
                 rows.append(DanceSet(f"{engine} @ {name}", f"{engine} at {name}", dances, styles, song_beats, {},
                                      songs))
-        if (Path(tmp) / "rev").exists():
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(Path(tmp) / "rev")],
-                           check=True)
     for row in list(rows[1:]):
         for a in range(0, args.takes, 2):
             keep = [i for i in range(len(songs)) if i % args.takes in (a, a + 1)]
