@@ -32,7 +32,7 @@ COLUMNS = ("fid_k", "fid_g", "beat_align_score", "style_consistency", "return_li
 
 def dance(jobs: Path, out: Path) -> None:
     """The dancing side, run with PYTHONPATH at a revision: every job of `jobs` (JSON) danced by that revision's
-    `generate_dance`, its motions saved in `out` (npz: rotations, root positions and fps per dance)."""
+    `generate_dance`, its motions saved in `out` (npz: each dance's rotations and root positions, at the jobs' fps)."""
     import dancenet_core
     from dancenet_core.generate import generate_dance
     from dancenet_core.request import DanceRequest
@@ -77,23 +77,24 @@ def main() -> int:
     args = parser.parse_args()
     if args.takes < 2 or args.takes % 2:
         parser.error("--takes must be even (the spread is measured on pairs of takes)")
-    data, fps = args.data or default_data_dir(), 25.0
-    split, pairs, beats = split_with_beats(data)
-    style_net = MotionStyleModel.load()
-    skeleton = DanceNetBundle.load(DEFAULT_BUNDLE).skeleton
-    test = [pairs[s] for s in split["test"] if pairs[s].style in style_net.styles]
-    train = [p for p in pairs.values() if p.seq in set(split["train"])]
-    seqs = {s.seq: s for s in read_manifest(data)}
-    rows = [DanceSet("real", "real dances", [decode(p.motion, fps, skeleton) for p in test],
-                     [p.style for p in test], [beats[p.seq] for p in test], {}, [p.seq for p in test])]
-    songs = [p.seq for p in test for _ in range(args.takes)]
-    styles = [p.style for p in test for _ in range(args.takes)]
-    song_beats = [beats[p.seq] for p in test for _ in range(args.takes)]
+    # the revision first: one that the repository lacks is said before the data are read
     with worktree(args.rev) as (commit, tree), tempfile.TemporaryDirectory() as tmp:
+        data, fps = args.data or default_data_dir(), 25.0
+        split, pairs, beats = split_with_beats(data)
+        style_net = MotionStyleModel.load()
+        skeleton = DanceNetBundle.load(DEFAULT_BUNDLE).skeleton
+        test = [pairs[s] for s in split["test"] if pairs[s].style in style_net.styles]
+        train = [(p, decode(p.motion, fps, skeleton)) for p in pairs.values() if p.seq in set(split["train"])]
+        seqs = {s.seq: s for s in read_manifest(data)}
+        rows = [DanceSet("real", "real dances", [decode(p.motion, fps, skeleton) for p in test],
+                         [p.style for p in test], [beats[p.seq] for p in test], {}, [p.seq for p in test])]
+        songs = [p.seq for p in test for _ in range(args.takes)]
+        styles = [p.style for p in test for _ in range(args.takes)]
+        song_beats = [beats[p.seq] for p in test for _ in range(args.takes)]
         folder = Path(tmp) / "library"
-        for p in train:
+        for p, motion in train:
             (folder / p.style).mkdir(parents=True, exist_ok=True)
-            write_bvh(folder / p.style / f"{p.seq}.bvh", decode(p.motion, fps, skeleton))
+            write_bvh(folder / p.style / f"{p.seq}.bvh", motion)
         jobs = Path(tmp) / "jobs.json"
         for engine in args.engines:
             jobs.write_text(json.dumps({"library": str(folder), "fps": fps, "jobs": [
@@ -113,11 +114,9 @@ def main() -> int:
     for row in list(rows[1:]):
         for a in range(0, args.takes, 2):
             keep = [i for i in range(len(songs)) if i % args.takes in (a, a + 1)]
-            rows.append(DanceSet(f"{row.name} (takes {a}, {a + 1})", row.label, [row.dances[i] for i in keep],
-                                 [styles[i] for i in keep], [song_beats[i] for i in keep], {},
-                                 [songs[i] for i in keep]))
-    reference = reference_features([decode(p.motion, fps, skeleton).positions() for p in train
-                                    if p.style in style_net.styles], fps, style_net)
+            rows.append(row.only(keep, f"{row.name} (takes {a}, {a + 1})"))
+    reference = reference_features([m.positions() for p, m in train if p.style in style_net.styles], fps,
+                                   style_net)
     table = measure(rows, reference, fps, style_net, song_forms(test, data))
     result = {"rev": args.rev, "commit": commit, "takes": args.takes,
               "rows": {name: {k: r[k] for k in COLUMNS if k in r} for name, r in table.items()}}

@@ -115,9 +115,7 @@ def main() -> int:
                 for how in hows]
         table = measure(rows, reference, fps, style_net, forms)
         pairs_of_takes = [[j for j in range(len(songs)) if j % takes // 2 == q] for q in range(takes // 2)]
-        spread = [measure([DanceSet(r.name, r.name, [r.dances[j] for j in q], [styles[j] for j in q],
-                                    [song_beats[j] for j in q], {}, [songs[j] for j in q]) for r in rows[:2]],
-                          reference, fps, style_net) for q in pairs_of_takes]
+        spread = [measure([r.only(q) for r in rows[:2]], reference, fps, style_net) for q in pairs_of_takes]
         for how, row in table.items():
             out[f"{engine}, {how}"] = {k: round(row[k], 4) for k in COLUMNS}
             if how in spread[0]:

@@ -87,6 +87,12 @@ class DanceSet:
     info: dict = field(default_factory=dict)
     songs: list[str] = field(default_factory=list)  # the sequence whose song each dance was danced to
 
+    def only(self, keep: list[int], name: str | None = None) -> DanceSet:
+        """The row of the dances at `keep` alone (a pair of takes, for the take-to-take spread)."""
+        return DanceSet(name or self.name, self.label, [self.dances[i] for i in keep],
+                        [self.styles[i] for i in keep], [self.beats_s[i] for i in keep], {},
+                        [self.songs[i] for i in keep] if self.songs else [])
+
 
 def segments(positions: np.ndarray, fps: float, seconds: float = SEGMENT_S) -> list[np.ndarray]:
     """Non-overlapping segments of `seconds` (a shorter tail is dropped)."""
