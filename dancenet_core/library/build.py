@@ -22,7 +22,6 @@ Torch-free and without the data package (the add-on's Build Library runs it insi
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..bvh import read_bvh
+from ..csvtable import read_rows
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..floor import floor_track
 from ..jointmap import CMU, armature_pose, rotation_motion, source_pose, up_rotation
@@ -154,15 +154,14 @@ def clip_hints(folder: Path, files: list[Path]) -> dict[Path, ClipHints]:
              for f in files}
     manifest = folder / "manifest.csv"
     if manifest.is_file():
-        with open(manifest, newline="") as f:
-            for line, row in enumerate(csv.DictReader(f), start=2):
-                path = folder / str(row.get("file") or "")
-                if path not in hints:
-                    continue
-                bpm = _manifest_number(folder, line, "bpm", str(row.get("bpm") or ""))
-                meter = _manifest_number(folder, line, "meter", str(row.get("meter") or ""))
-                hints[path] = ClipHints(str(row.get("style") or "").strip() or hints[path].style, bpm,
-                                        None if meter is None else int(meter))
+        for line, row in read_rows(manifest, "library manifest")[1]:
+            path = folder / str(row.get("file") or "")
+            if path not in hints:
+                continue
+            bpm = _manifest_number(folder, line, "bpm", str(row.get("bpm") or ""))
+            meter = _manifest_number(folder, line, "meter", str(row.get("meter") or ""))
+            hints[path] = ClipHints(str(row.get("style") or "").strip() or hints[path].style, bpm,
+                                    None if meter is None else int(meter))
     return hints
 
 

@@ -24,7 +24,9 @@ import pytest
 import soundfile as sf
 from made_up import music
 
-from dancenet_core.catalog import RECORDS, CatalogSong, _ray_song, _stop, read_catalog, request_id, run_catalog
+from dancenet_core.catalog import RECORDS, CatalogSong, read_catalog, request_id, run_catalog
+from dancenet_core.catalog.cluster import _ray_song
+from dancenet_core.catalog.local import _stop
 from dancenet_core.cli import build_parser, main
 from dancenet_core.commands.batch import GenerateTask
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
