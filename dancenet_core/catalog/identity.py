@@ -14,6 +14,7 @@ from typing import Any
 from .. import __version__
 from ..atomic import write_text
 from ..environment import WEIGHTS_DIR
+from ..errors import DanceNetError
 from ..library.store import folder_key
 from ..request import check_song_path
 from .songs import CatalogSong, SongTask
@@ -66,7 +67,10 @@ class Digests:
         return self.folders[key]
 
     def save(self) -> None:
-        if self.path is not None and self.changed:
+        """Keep the digests for the next run; one that cannot be written costs only that (it reads the files)."""
+        if self.path is None or not self.changed:
+            return
+        with suppress(OSError, DanceNetError):
             self.path.parent.mkdir(parents=True, exist_ok=True)
             write_text(self.path, json.dumps(self.known, separators=(",", ":")) + "\n")
             self.changed = False
