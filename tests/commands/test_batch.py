@@ -237,12 +237,19 @@ def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted
     assert not any(TEMP_MARK in p.name for p in (out / RECORDS).iterdir())
 
 
+def _interrupt_as_a_terminal_sends_it() -> None:
+    """In the batch's process: SIGINT back to its default action. A suite started in the background by a shell
+    without job control (`make test &` in a script) ignores SIGINT, and the batch would inherit that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
 def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: Path, reference: dict,
                                                                        tmp_path: Path) -> None:
     out = tmp_path / "out"
     run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+                           stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           preexec_fn=_interrupt_as_a_terminal_sends_it)
     _wait_for(run, out, 1)
     workers = _children(run.pid)
     os.killpg(run.pid, signal.SIGINT)  # what Ctrl-C in its terminal sends
