@@ -25,8 +25,9 @@ from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
-from .returns import JOIN_BLEND_S, carry_on, dance_returns, figures_as_danced
+from .returns import JOIN_BLEND_S, carry_on, copies_danced, dance_returns
 from .rootmotion import apply_mode
+from .shaping.figures import danced_figures, spliced
 
 
 @dataclass
@@ -155,6 +156,10 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
                           seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
             new = _section_anew(engine, analysis, sub, motion, section, part, report, cancelled)
             takes.motions[k] = new.motions[0]
+            if k < len(takes.details) and new.details and "danced_figures" in new.details[0]:
+                takes.details[k]["danced_figures"] = spliced(takes.details[k]["danced_figures"],
+                                                             new.details[0]["danced_figures"], section.start_s,
+                                                             section.end_s)
             if k < len(takes.contacts) and new.contacts:
                 done = len(new.contacts[0])
                 takes.contacts[k] = np.concatenate([new.contacts[0], takes.contacts[k][done:]])
@@ -164,7 +169,7 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
 def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRequest) -> Takes:
     """The takes with the song's returning sections danced as `request.returns` says, or as a section's own
     settings say (`returns.dance_returns`; a section danced with a style or energy of its own is left as it is),
-    their foot contacts following the frames."""
+    their foot contacts following the frames and a library take's figures listed as danced (`shaping.figures`)."""
     keep = request.at_s if request.continue_from is not None else 0.0
     modes = {o.section: "anew" if o.redances else o.returns for o in request.sections if o.redances or o.returns}
     motions, contacts = [], []
@@ -172,8 +177,12 @@ def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRe
         out, frame_map = dance_returns(motion, form, start_s, request.returns, keep, modes)
         motions.append(out)
         if k < len(takes.details) and "danced_figures" in takes.details[k]:
-            takes.details[k]["danced_figures"] = figures_as_danced(takes.details[k]["danced_figures"], frame_map,
-                                                                   motion.fps, start_s)
+            bars = form.bar_starts
+            copies = [(bars[a:b + 1], bars[s:s + b - a + 1], how == "mirror")
+                      for a, b, s, how in copies_danced(form, start_s, motion.fps, motion.num_frames, request.returns,
+                                                        keep, modes)]
+            takes.details[k]["danced_figures"] = danced_figures(takes.details[k]["danced_figures"], copies,
+                                                                start_s + motion.duration, motion.fps)
         if k < len(takes.contacts):
             contacts.append(takes.contacts[k][np.round(frame_map).astype(int)])
     takes.motions, takes.contacts = motions, contacts

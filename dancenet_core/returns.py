@@ -44,12 +44,10 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, kee
     edges = form.bar_starts - start_s  # bar boundaries in the dance's time
     fps = motion.fps
     slack = int(round(JOIN_SLACK_S * fps))
-    for target, target_end, source, how in _copies(form, mode, section_modes or {}):
-        t0, t1, s0 = edges[target] * fps, edges[target_end] * fps, edges[source] * fps
+    for target, target_end, source, how in copies_danced(form, start_s, fps, motion.num_frames, mode, keep_until_s,
+                                                         section_modes):
         n_bars = target_end - target
-        first, last = int(np.ceil(t0)), min(int(np.ceil(t1)), motion.num_frames)
-        if s0 < 0 or first - slack < max(keep_until_s * fps, s0 + slack + 1) or last - first < 4 * slack:
-            continue
+        first, last = int(np.ceil(edges[target] * fps)), min(int(np.ceil(edges[target_end] * fps)), motion.num_frames)
         # Source time of every frame the copy may cover (the joins may move by up to `slack` frames either way,
         # the crossfade out runs on after the section), bar against bar, carried on at the first and last bars'
         # pace beyond them.
@@ -67,6 +65,22 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, kee
         frame_map[entry:leave] = frame_map[np.clip(np.round(src_frames[entry - offset:leave - offset]).astype(int), 0,
                                                    motion.num_frames - 1)]
     return motion, frame_map
+
+
+def copies_danced(form: SongForm, start_s: float, fps: float, num_frames: int, mode: str, keep_until_s: float = 0.0,
+                  section_modes: dict[str, str] | None = None) -> list[tuple[int, int, int, str]]:
+    """The copies `dance_returns` lays on a dance of `num_frames` frames at `fps` (see its arguments): (first bar,
+    end bar, source's first bar, mode) for each of `_copies` whose source lies within the danced part, after the
+    frames kept, and that is long enough for its joins."""
+    edges = form.bar_starts - start_s
+    slack = int(round(JOIN_SLACK_S * fps))
+    out = []
+    for target, target_end, source, how in _copies(form, mode, section_modes or {}):
+        t0, t1, s0 = edges[target] * fps, edges[target_end] * fps, edges[source] * fps
+        first, last = int(np.ceil(t0)), min(int(np.ceil(t1)), num_frames)
+        if s0 >= 0 and first - slack >= max(keep_until_s * fps, s0 + slack + 1) and last - first >= 4 * slack:
+            out.append((target, target_end, source, how))
+    return out
 
 
 def _laid(motion: Motion, copy: Motion, offset: int, entry: int, leave: int, blend: int) -> Motion:
@@ -275,26 +289,3 @@ def _placed(piece: Motion, k: int, at: Motion) -> Motion:
     rots = piece.rotations.copy()
     rots[:, 0] = (turn * Rotation.from_rotvec(rots[:, 0])).as_rotvec()
     return Motion(rots, root, piece.fps, piece.skeleton)
-
-
-def figures_as_danced(figures: list[dict], frame_map: np.ndarray, fps: float, start_s: float) -> list[dict]:
-    """A plan's figures (`choreography.Report.figures`: clip, clip_s, song_s, ratio) as the take dances them once
-    its returns are danced again (`frame_map` from `dance_returns`): each run of frames that plays on through one
-    figure of the plan, with where in the song it now plays and where in its clip it starts and ends."""
-    if not figures or not len(frame_map):
-        return figures
-    song0 = np.array([f["song_s"][0] for f in figures])
-    planned = start_s + frame_map / fps  # where in the song the plan danced each frame
-    row = np.clip(np.searchsorted(song0, planned, side="right") - 1, 0, len(figures) - 1)
-    cut = np.flatnonzero((np.diff(row) != 0) | (np.abs(np.diff(frame_map) - 1.0) > 0.5)) + 1
-    out = []
-    for a, b in zip([0, *cut], [*cut, len(frame_map)], strict=True):
-        f = figures[row[a]]
-        (s0, s1), (c0, c1) = f["song_s"], f["clip_s"]
-
-        def clip_at(t: float, s0: float = s0, s1: float = s1, c0: float = c0, c1: float = c1) -> float:
-            return round(float(c0 + (c1 - c0) * np.clip((t - s0) / max(s1 - s0, 1e-9), 0.0, 1.0)), 3)
-
-        out.append({"clip": f["clip"], "clip_s": [clip_at(planned[a]), clip_at(planned[b - 1] + 1 / fps)],
-                    "song_s": [round(start_s + a / fps, 3), round(start_s + b / fps, 3)], "ratio": f["ratio"]})
-    return out

@@ -245,13 +245,38 @@ def test_the_library_engine_lists_each_figure_as_danced_returns_included(arrange
     assert starts[0] == pytest.approx(result.start_s) and ends[-1] == pytest.approx(result.duration_s, abs=0.05)
     assert starts[1:] == pytest.approx(ends[:-1])  # one after another, the whole dance
     assert all(f["clip"].endswith(".bvh") and f["clip_s"][0] <= f["clip_s"][1] for f in figures)
+    assert_whole_figures(figures, float(np.median(np.diff(result.beat_times))))
+    assert len(figures) < len(result.form.bar_starts) - 1  # a figure of a bar or more, not pieces of frames
     a1, a2 = (next(s for s in result.form.sections if s.name == n) for n in ("A1", "A2"))
 
-    def clips(section) -> list[tuple[str, float]]:
-        return [(f["clip"], round(f["clip_s"][0], 1)) for f in figures
-                if section.start_s + 0.5 <= f["song_s"][0] < section.end_s - 0.5]
+    def inside(section) -> list[dict]:
+        return [f for f in figures if section.start_s - 0.05 <= f["song_s"][0] < section.end_s - 0.5]
 
-    assert clips(a2) == clips(a1) and len(clips(a1)) >= 4  # the return is the same figures, from the same places
+    assert [(f["clip"], f["clip_s"][0]) for f in inside(a2)] == [(f["clip"], f["clip_s"][0]) for f in inside(a1)]
+    assert len(inside(a1)) >= 3  # the return is the same figures, from the same places
+    assert [f["repeats"]["song_span"][0] for f in inside(a2)] == [f["song_s"][0] for f in inside(a1)]
+    assert all(not f["repeats"]["mirrored"] for f in inside(a2))
+
+
+def assert_whole_figures(figures: list[dict], beat_s: float) -> None:
+    """Each entry of a figure list a whole figure: at least a beat long but where the dance's start or end cuts
+    it, never carrying on the entry before it (the same clip from where that one ends), and a repeat pointing at
+    an earlier span of the list danced from the same clip."""
+    for k, f in enumerate(figures):
+        (s0, s1), (c0, c1) = f["song_s"], f["clip_s"]
+        assert s1 - s0 >= beat_s or k in (0, len(figures) - 1), f
+        assert f["warp"] == pytest.approx((c1 - c0) / (s1 - s0), abs=0.01)
+        if k:
+            e = figures[k - 1]
+            carried = e["clip"] == f["clip"] and abs(e["clip_s"][1] - c0) < 0.02 and (
+                e.get("repeats", {}).get("mirrored") == f.get("repeats", {}).get("mirrored"))
+            assert not carried or ("repeats" in e) != ("repeats" in f) or (
+                "repeats" in f and e["repeats"]["song_span"][1] != f["repeats"]["song_span"][0]), (e, f)
+        if "repeats" in f:
+            r0, r1 = f["repeats"]["song_span"]
+            assert r1 <= s0 and r1 - r0 == pytest.approx(s1 - s0, rel=0.3)
+            assert any(e["clip"] == f["clip"] and e["song_s"][0] - 1e-3 <= r0 and r1 <= e["song_s"][1] + 1e-3
+                       for e in figures[:k]), f
 
 
 def test_a_run_of_returns_is_one_copy_of_the_run_it_repeats():
