@@ -303,3 +303,21 @@ def test_a_copy_leaves_out_the_bars_it_would_play_beyond_the_real_time_limit():
     form = SongForm(edges, (), sections)
     assert _copies(form, "repeat", {}) == [(16, 20, 0, "repeat"), (21, 32, 5, "repeat")]
     assert _copies(form, "repeat", {"A2": "anew"}) == [(24, 32, 8, "repeat")]
+
+
+def test_a_song_of_more_than_26_sections_labels_each_music_apart():
+    """14 groups X Y X of music heard once each: 28 labels. Past Z the labels go on (AA, AB, ...), so the 27th
+    new music is not called A again and its return is not danced as a copy of A1."""
+    letters = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+    song = "".join(letters[2 * g] + letters[2 * g + 1] + letters[2 * g] for g in range(14))
+    form = song_form(analysis(arranged_features(song, bars=4)))
+    assert len(form.sections) == len(song)
+    music = dict(zip(form.sections, song, strict=True))
+    label_of = {}
+    for s in form.sections:
+        assert label_of.setdefault(music[s], s.label) == s.label  # the same music, the same label
+    assert len(set(label_of.values())) == 28 and [label_of[c] for c in letters[26:28]] == ["AA", "AB"]
+    assert form.labels.split() == [s.label for s in form.sections]
+    for first, _end, source, _how in _copies(form, "repeat", {}):
+        target = next(s for s in form.sections if s.first_bar == first)
+        assert music[next(s for s in form.sections if s.first_bar == source)] == music[target]
