@@ -68,19 +68,36 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
 _section_style_items: list[tuple[str, str, str, int]] = []
 
 
-def _section_styles(_self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
-    """A section's style: the dance's, or one of the styles the Style menu offers."""
+def _section_styles(self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    """A section's style: the dance's, one of the styles the Style menu offers, or the section's own when the
+    engine offers it no more (said in its label: Generate then says the engine lacks it)."""
     props = context.scene.dancenet if context is not None else None
     styles = [item for item in (_styles(props, context) if props is not None else []) if item[0] != "auto"]
-    _section_style_items[:] = [(AS_DANCE, "As the Dance", "The dance's style", 0),
-                               *((k, label.split("  ")[0], d, i) for i, (k, label, d, _n) in enumerate(styles, 1))]
+    items = [(AS_DANCE, "As the Dance", "The dance's style", 0),
+             *((k, label.split("  ")[0], d, i) for i, (k, label, d, _n) in enumerate(styles, 1))]
+    own = getattr(self, "style_name", "")
+    if own and own not in {k for k, *_ in items}:
+        items.append((own, f"{_style_label(own)} (not this engine's)", f"Dance {_style_label(own)}", len(items)))
+    _section_style_items[:] = items
     return _section_style_items
+
+
+def _get_section_style(self: Any) -> int:
+    """The menu's entry of the section's style, found by name: a dynamic enum stored by its index would turn into
+    another style when the engine, and so the list, changes."""
+    name = self.style_name or AS_DANCE
+    return next((v for k, _l, _d, v in _section_styles(self, bpy.context) if k == name), 0)
+
+
+def _set_section_style(self: Any, value: int) -> None:
+    self.style_name = next((k for k, _l, _d, v in _section_styles(self, bpy.context) if v == value), AS_DANCE)
 
 
 class DanceNetSection(bpy.types.PropertyGroup):
     """Settings of one section of the song's form (A1, B1, A2, ...: its name is the item's name)."""
 
-    style: EnumProperty(name="Style", items=_section_styles,
+    style_name: StringProperty(options={"HIDDEN"})  # the section's style as chosen ("": the dance's)
+    style: EnumProperty(name="Style", items=_section_styles, get=_get_section_style, set=_set_section_style,
                         description="Dance this section in another style (it is then danced anew)")
     energy: EnumProperty(name="Energy", default=AS_DANCE, items=[
         (AS_DANCE, "As the Dance", "The dance's energy"),
