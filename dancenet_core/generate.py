@@ -25,9 +25,9 @@ from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
-from .returns import JOIN_BLEND_S, carry_on, copies_danced, dance_returns
 from .rootmotion import apply_mode
 from .shaping.figures import danced_figures, spliced
+from .shaping.repeats import JOIN_BLEND_S, carry_on, copies_danced, dance_returns
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""The song's form (music/form.py) and returns danced again (returns.py), on made-up analyses and motions, and
+"""The song's form (music/form.py) and returns danced again (shaping/repeats.py), on made-up analyses and motions, and
 with both engines on a song arranged A B A C A B from 8-bar sections of real training songs."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dancenet_core.music.features import analyze_music
 from dancenet_core.music.form import Section, SongForm, song_form
 from dancenet_core.representation import heading_frames
 from dancenet_core.request import DanceRequest
-from dancenet_core.returns import _copies, carry_on, dance_returns
+from dancenet_core.shaping.repeats import _copies, carry_on, dance_returns
 from tests.made_up import analysis, arranged_training_song
 
 BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s

@@ -22,15 +22,15 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .constants import WARP_RANGE
-from .floor import toe_ends
-from .motion import Motion
-from .music.form import SongForm
-from .representation import heading_frames, yaw_and_swing
+from ..constants import WARP_RANGE
+from ..floor import toe_ends
+from ..motion import Motion
+from ..music.form import SongForm
+from ..representation import heading_frames, yaw_and_swing
 
 JOIN_SLACK_S = 0.25  # a join may move this far from the section's boundary, to where the two dances are most alike
-# How long a join's crossfade lasts: on the validation songs a 0.4-s join cost FID_k (40.8 against 35.8 danced
-# anew), 1.2 s costs about none (36.7; 2 s: 36.1) and keeps the return 0.09 alike (docs/form.md).
+# How long a join's crossfade lasts: long enough that the join between two unrelated dances costs the dance's
+# realism about nothing, short enough that the return stays alike to its source (measured in docs/experiments.md).
 JOIN_BLEND_S = 1.2
 
 
