@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from .constants import MIN_PART_S
-from .continuation import DIFFERENCES, keep_original
 from .engines import Engine, Takes, get_engine
 from .environment import one_blas_thread
 from .errors import DanceNetError, GenerationCancelled
@@ -26,6 +25,7 @@ from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
 from .rootmotion import apply_mode
+from .shaping.continuation import DIFFERENCES, keep_original
 from .shaping.figures import danced_figures, spliced
 from .shaping.repeats import JOIN_BLEND_S, carry_on, copies_danced, dance_returns
 

@@ -17,9 +17,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
-from ..continuation import _fade
 from ..motion import Motion
 from ..representation import foot_contacts, heading
+from ..shaping.continuation import _fade
 from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
 
