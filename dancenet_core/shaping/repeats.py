@@ -27,6 +27,7 @@ from ..floor import toe_ends
 from ..motion import Motion
 from ..music.form import SongForm
 from ..representation import heading_frames, yaw_and_swing
+from .placing import mixed, sample_frames, turned
 
 JOIN_SLACK_S = 0.25  # a join may move this far from the section's boundary, to where the two dances are most alike
 # How long a join's crossfade lasts: long enough that the join between two unrelated dances costs the dance's
@@ -176,19 +177,7 @@ def _blend(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
 
     q0, q1 = carried(q0), carried(q1)
     side = ((q0 * q1).sum(-1) * w * (1 - w)).sum(0)  # [J]
-    return _mixed(q0, np.where(side[:, None] < 0, -q1, q1), w)
-
-
-def _nlerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Rotation vectors [N, J, 3] between quaternions [N, J, 4] at weights [N, 1] (normalised linear
-    interpolation, the short way round: for neighbouring frames)."""
-    return _mixed(q0, np.where((q0 * q1).sum(-1, keepdims=True) < 0, -q1, q1), w)
-
-
-def _mixed(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Rotation vectors [N, J, 3] of the normalised weighted sums of quaternions [N, J, 4] at weights [N, 1]."""
-    mixed = q0 * (1 - w[:, :, None]) + q1 * w[:, :, None]
-    return Rotation.from_quat(mixed.reshape(-1, 4)).as_rotvec().reshape(q0.shape[0], -1, 3)
+    return mixed(q0, np.where(side[:, None] < 0, -q1, q1), w)
 
 
 def _bar_map(frames: np.ndarray, target: np.ndarray, source: np.ndarray) -> np.ndarray:
@@ -259,18 +248,10 @@ def _within_warp(edges: np.ndarray, first: int, end: int, source: int, how: str)
 
 
 def _sample(motion: Motion, frames: np.ndarray) -> Motion:
-    """The motion at fractional frames (rotations by normalised quaternion interpolation, which between
-    neighbouring frames is slerp to within 1e-4 rad at a quarter the cost; the root linear), as a Motion;
-    frames before the first carry on its first step backwards (a phrase copied from the dance's start still
-    has a lead-in that moves as the dance moves)."""
-    frames = np.minimum(frames, motion.num_frames - 1)
-    lo = np.clip(np.floor(frames).astype(int), 0, max(0, motion.num_frames - 2))
-    hi = np.minimum(lo + 1, motion.num_frames - 1)
-    w = (frames - lo)[:, None]
-    first, last = lo.min(), hi.max() + 1
-    q = Rotation.from_rotvec(motion.rotations[first:last].reshape(-1, 3)).as_quat().reshape(last - first, -1, 4)
-    rots = _nlerp(q[lo - first], q[hi - first], w)
-    root = motion.root_positions[lo] * (1 - w) + motion.root_positions[hi] * w
+    """The motion at fractional frames (`placing.sample_frames`), as a Motion; frames before the first carry on its
+    first step backwards (a phrase copied from the dance's start still has a lead-in that moves as the dance
+    moves), frames after the last hold it."""
+    rots, root = sample_frames(motion.rotations, motion.root_positions, np.minimum(frames, motion.num_frames - 1))
     return Motion(rots, root, motion.fps, motion.skeleton)
 
 
@@ -283,9 +264,6 @@ def _placed(piece: Motion, k: int, at: Motion) -> Motion:
     """`piece` turned about the vertical and moved across the floor so that its frame k stands where `at` (one
     frame) stands and faces where it faces (its height and its pose untouched)."""
     yaw = _heading(at, 0) - _heading(piece, k)
-    turn = Rotation.from_euler("y", yaw)
-    root = piece.root_positions - piece.root_positions[k] * np.array([1.0, 0.0, 1.0])
-    root = turn.apply(root) + at.root_positions[0] * np.array([1.0, 0.0, 1.0])
-    rots = piece.rotations.copy()
-    rots[:, 0] = (turn * Rotation.from_rotvec(rots[:, 0])).as_rotvec()
+    shift = (at.root_positions[0] - Rotation.from_euler("y", yaw).apply(piece.root_positions[k]))[[0, 2]]
+    rots, root = turned(piece.rotations, piece.root_positions, yaw, shift)
     return Motion(rots, root, piece.fps, piece.skeleton)
