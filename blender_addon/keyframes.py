@@ -673,15 +673,15 @@ def apply_motion(
     root_motion: str = "travel",
 ) -> bpy.types.Action:
     """Retarget `motion` through `bone_map` and write it as a new action on `rig`. A Generate Dance passes its
-    takes as `dancenet_core.generate.shape_takes` made them, with `fps` None; given a rate, a motion as danced is
-    shaped here first by the same `shape_take` (resampled to `fps`, root motion applied).
+    takes as `dancenet_core.shaping.takes.shape_takes` made them, with `fps` None; given a rate, a motion as
+    danced is shaped here first by the same `shape_take` (resampled to `fps`, root motion applied).
 
     `root_motion` (see `dancenet_core.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
     top of the hips' chain carries the floor path and heading). A root bone of a rig made by DanceNet is
     keyed at rest in the other modes, so a take never inherits another take's root pose. A control rig
     (Rigify, Auto-Rig Pro: `rigcontrols`) is keyed on its controls instead of the mapped bones.
     """
-    from dancenet_core.generate import shape_take  # the command line's shaping too: one output path
+    from dancenet_core.shaping.takes import shape_take  # the command line's shaping too: one output path
     from dancenet_core.rootmotion import split_root
 
     if fps is not None:

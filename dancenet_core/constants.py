@@ -16,5 +16,5 @@ MAX_TEMPERATURE = 3.0
 # The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).
 MIN_PART_S = 1.0
 # A time-warp plays every frame within this share of the speed it was danced or captured at: the library engine's
-# figures laid on the song's beats, and DanceNet's beat lock (`beatlock.py`).
+# figures laid on the song's beats, and DanceNet's beat lock (`shaping/beatlock.py`).
 WARP_RANGE = 0.15

@@ -462,10 +462,10 @@ def _foot_sections(footfix_info: dict | None) -> list[str]:
         "## Beat lock",
         "Each dance is time-warped, ahead of the foot clean-up, so that its kinematic beats (the Beat Align Score's) "
         f"land on the song's beats, no frame more than {WARP_RANGE:.0%} faster or slower than sampled "
-        "(`beatlock.py`; on by default, `--no-beat-lock` or the panel's Beat Lock off). The test metrics above are "
-        "measured with it, as generation dances, and without it in their last column. It aims at the tracked beats "
-        "that the Beat Align Score is measured against (a user's song gives them too), so the score measures the "
-        "retiming, not the model.",
+        "(`shaping/beatlock.py`; on by default, `--no-beat-lock` or the panel's Beat Lock off). The test metrics "
+        "above are measured with it, as generation dances, and without it in their last column. It aims at the "
+        "tracked beats that the Beat Align Score is measured against (a user's song gives them too), so the score "
+        "measures the retiming, not the model.",
     ]
     if footfix_info:
         lines += [

@@ -192,11 +192,11 @@ def test_root_bone_and_in_place_keep_the_dance_where_it_belongs(scene, addon, so
 def test_each_take_is_shaped_once(scene, addon, song, monkeypatch):
     """The command line's output path shapes the takes (resampled, root motion applied); keying them does not
     shape them again."""
-    from dancenet_core import generate
+    from dancenet_core.shaping import takes
 
     shaped = []
-    real = generate.shape_take
-    monkeypatch.setattr(generate, "shape_take", lambda *a: shaped.append(a[1:]) or real(*a))
+    real = takes.shape_take
+    monkeypatch.setattr(takes, "shape_take", lambda *a: shaped.append(a[1:]) or real(*a))
     scene.render.fps = 24  # the fake dances at 30 fps
     props = scene.dancenet
     props.music_source, props.music_file, props.root_motion, props.takes = "FILE", str(song), "in-place", 2
