@@ -34,7 +34,7 @@ REQUIRED_JOINTS: tuple[str, ...] = (
 
 
 # The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
-# count of spine bones; the dance's turn of those a rig lacks is spread over those it has (keyframes.retarget).
+# count of spine bones; the dance's turn of those a rig lacks is spread over those it has (retarget.retarget).
 SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
 
 
