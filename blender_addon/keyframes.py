@@ -96,7 +96,7 @@ def _key_controls(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str
     what its deform bone still lacks (and move the pelvis' control by what the hips lack), parents first, a
     child counting on its parent's turn, and again until the bones are where the dance wants them.
     """
-    from dancenet_core.rootmotion import split_root
+    from dancenet_core.shaping.rootmotion import split_root
 
     floor = None
     if root_bone:
@@ -320,12 +320,12 @@ def apply_motion(
     takes as `dancenet_core.shaping.takes.shape_takes` made them, with `fps` None; given a rate, a motion as
     danced is shaped here first by the same `shape_take` (resampled to `fps`, root motion applied).
 
-    `root_motion` (see `dancenet_core.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
+    `root_motion` (see `dancenet_core.shaping.rootmotion`): "travel", "in-place", or "root-bone" (the bone at the
     top of the hips' chain carries the floor path and heading). A root bone of a rig made by DanceNet is
     keyed at rest in the other modes, so a take never inherits another take's root pose. A control rig
     (Rigify, Auto-Rig Pro: `rigcontrols`) is keyed on its controls instead of the mapped bones.
     """
-    from dancenet_core.rootmotion import split_root
+    from dancenet_core.shaping.rootmotion import split_root
     from dancenet_core.shaping.takes import shape_take  # the command line's shaping too: one output path
 
     if fps is not None:

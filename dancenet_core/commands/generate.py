@@ -20,8 +20,8 @@ from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, 
 from ..progress import StageProgress
 from ..render import render_motion
 from ..request import DanceRequest, add_options, options_from
-from ..rootmotion import read_dance_bvh, write_root_bone_bvh
 from ..runtime.weights import DEFAULT_RUNTIME, META
+from ..shaping.rootmotion import read_dance_bvh, write_root_bone_bvh
 from ..shaping.takes import shape_takes
 
 

@@ -14,7 +14,6 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..constants import MIN_PART_S
 from ..errors import DanceNetError, GenerationCancelled
-from ..floor import floor_shift
 from ..motion import Motion
 from ..music.features import FEATURE_SPEC, FeatureSpec, MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
@@ -24,6 +23,7 @@ from ..runtime.sampler import CachedSampler, Sampling, music_conditioning
 from ..runtime.weights import DEFAULT_RUNTIME, RuntimeBundle, RuntimeFootFixer
 from ..shaping.beatlock import lock_to_beats
 from ..shaping.continuation import join_kept
+from ..shaping.floor import floor_shift
 from ..shaping.footlock import lock_feet, planted_feet
 from . import Takes
 from .styles import check_style, choose_style, is_checkpoint

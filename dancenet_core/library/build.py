@@ -32,12 +32,12 @@ from scipy.spatial.transform import Rotation
 
 from ..bvh import read_bvh
 from ..errors import DanceNetError, GenerationCancelled, first_line
-from ..floor import floor_track
 from ..jointmap import CMU, armature_pose, rotation_motion, source_pose, up_rotation
 from ..kinematics import fk_numpy
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rootmotion import UNITS, read_dance_bvh
+from ..shaping.floor import floor_track
+from ..shaping.rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
 from .analysis import ClipAnalysis, analyze_clip
 from .match import frames_of

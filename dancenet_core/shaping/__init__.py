@@ -4,7 +4,7 @@ Inside an engine (the DanceNet engine; the library's frames are real capture, pl
 `library/transitions.py`):
   1. `beatlock.py`      the dance's own beats moved onto the song's (a time warp within `constants.WARP_RANGE`)
   2. `footlock.py`      feet that the foot model says stand are held where they stand
-  3. `floor.py`         the dance set on the floor (the lower toe where the floor is); in the package's top level
+  3. `floor.py`         the dance set on the floor (the lower toe where the floor is)
   4. `continuation.py`  a continued dance joins the kept one with no jump
 After the engine (and any section it danced anew with settings of its own: `generate.py`), for every engine:
   5. `repeats.py`       the song's returning sections danced as their first hearing (`placing.py` lays a copy where
@@ -15,5 +15,6 @@ Then the one output path (`takes.shape_takes`, the command line's and the add-on
      (`continuation.keep_original`), and the root motion applied (`rootmotion.apply_mode`).
 
 The package sits below the engines, which call its steps: it imports no engine, and its `__init__` imports
-nothing, so a foundation module (`continuation`, `footlock`) stays free of the music.
+nothing, so a foundation module (`continuation`, `floor`, `footlock`, `rootmotion`) stays free of the
+music.
 """

@@ -23,10 +23,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..constants import WARP_RANGE
-from ..floor import toe_ends
 from ..motion import Motion
 from ..music.form import SongForm
 from ..representation import heading_frames, yaw_and_swing
+from .floor import toe_ends
 from .placing import mixed, sample_frames, turned
 
 JOIN_SLACK_S = 0.25  # a join may move this far from the section's boundary, to where the two dances are most alike

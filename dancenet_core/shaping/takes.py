@@ -9,10 +9,10 @@ import numpy as np
 from ..motion import Motion
 from ..music.form import SongForm
 from ..request import DanceRequest
-from ..rootmotion import apply_mode
 from .continuation import keep_original
 from .figures import danced_figures
 from .repeats import copies_danced, dance_returns
+from .rootmotion import apply_mode
 
 
 def with_repeats(motion: Motion, contacts: np.ndarray | None, figures: list[dict] | None, form: SongForm,

@@ -147,7 +147,7 @@ def test_shipped_model_dances_the_heard_part_of_a_trimmed_strip(real_scene, tmp_
 
 
 def test_root_bone_and_in_place_keep_the_dance_where_it_belongs(scene, addon, song, tmp_path):
-    from dancenet_core.rootmotion import in_place, read_dance_bvh
+    from dancenet_core.shaping.rootmotion import in_place, read_dance_bvh
     from dancenet_core.skeleton import JOINT_NAMES
 
     scene.render.fps = 30  # the fake dances at 30 fps: no resampling, so the poses are exact
