@@ -28,7 +28,7 @@ from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
 from .shaping.continuation import DIFFERENCES
-from .shaping.figures import spliced
+from .shaping.figures import danced_figures, spliced
 from .shaping.repeats import JOIN_BLEND_S, carry_on
 from .shaping.takes import with_repeats
 
@@ -145,6 +145,10 @@ def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, reque
     section = section_named(form, request.redo_section, part)
     takes = _section_anew(engine, analysis, request, request.continue_from, section, part, report, cancelled)
     takes.contacts = []  # the kept dance has none
+    for details in takes.details:  # a library take lists the section's figures (the kept dance's are not known)
+        if "danced_figures" in details:
+            rows = spliced([], details["danced_figures"], section.start_s, section.end_s)
+            details["danced_figures"] = danced_figures(rows, [], section.end_s, takes.motions[0].fps)
     return takes
 
 

@@ -256,6 +256,14 @@ def test_the_library_engine_lists_each_figure_as_danced_returns_included(arrange
     assert len(inside(a1)) >= 3  # the return is the same figures, from the same places
     assert [f["repeats"]["song_span"][0] for f in inside(a2)] == [f["song_s"][0] for f in inside(a1)]
     assert all(not f["repeats"]["mirrored"] for f in inside(a2))
+    # C1 danced anew in the take: its own figures, listed whole.
+    c1 = next(s for s in result.form.sections if s.name == "C1")
+    redo = generate_dance(DanceRequest(arranged_song, engine="library", seed=3, continue_from=result.motions[0],
+                                       at_s=1.0, redo_section="C1"))
+    anew = redo.details[0]["danced_figures"]
+    assert anew[0]["song_s"][0] == pytest.approx(c1.start_s, abs=0.05)
+    assert anew[-1]["song_s"][1] == pytest.approx(c1.end_s, abs=0.05)
+    assert_whole_figures(anew, float(np.median(np.diff(result.beat_times))))
 
 
 def assert_whole_figures(figures: list[dict], beat_s: float) -> None:
