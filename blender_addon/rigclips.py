@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING
 import bpy
 import numpy as np
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
+from dancenet_core.rigmap import REQUIRED_JOINTS, humanoid_map
 from dancenet_core.skeleton import JOINT_INDEX
 
-from . import bonemap, rigchoice, song, takes
-from .rigdef import REQUIRED_JOINTS
-from .vrmhumanoid import humanoid_map
+from . import rigchoice, song, takes
 
 if TYPE_CHECKING:  # the library's build code is loaded when a library is built, not with the add-on
     from dancenet_core.library.build import ArmatureClip
@@ -79,8 +79,8 @@ def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
     try:
         mapping, _ = rigchoice.resolve_map(rig, None)
     except DanceNetError as e:
-        auto = bonemap.auto(rigchoice.rest_bones(rig), rig.name, rigchoice.saved_maps_dir(), humanoid_map(rig.data))
-        found = bonemap.match(auto, rig.data.bones.keys())[0]
+        auto = rigmap.auto_map(rigchoice.rest_bones(rig), rig.name, rigchoice.saved_maps_dir(), humanoid_map(rig.data))
+        found = rigmap.match(auto, rig.data.bones.keys())[0]
         missing = [j.replace("_", " ") for j in REQUIRED_JOINTS if j not in found]
         more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
         raise DanceNetError(f"armature '{rig.name}' is not a humanoid: Auto's bone map finds no bone for "
