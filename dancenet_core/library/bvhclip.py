@@ -4,7 +4,7 @@ alike.
 
 Which joint is which comes from the shared bone mapper (`rigmap.humanoid_joints`: the shipped maps by names, then
 the skeleton's shape, or a map the folder's manifest names), run on the file's rest pose: each joint a bone from
-its head to its child (the mean of its children's heads where it branches, its End Site where it ends). The rest
+its head on to its child or End Site (`rest_bones`). The rest
 pose may stand along any axis, in any unit, any pose; the motion's world may stand along another (AMASS's CMU files
 rest Y-up and move Z-up): it is turned onto the rest's. A first frame an exporter prepends in the rest pose
 (iClone's T-pose), followed by a jump into the dance, is dropped.
@@ -62,29 +62,32 @@ def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
 
 
 def rest_bones(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
-    """Each joint's rest head and tail [J, 3] (the file's frame and units), as Blender's BVH importer makes bones:
-    the tail at its one child, at the mean of its children where it branches (or at its first child, where they
-    meet at its head), at its End Site, else on along its parent's bone."""
+    """Each joint's rest head and tail [J, 3] (the file's frame and units): the tail where the bone runs on
+    straightest (of its children and End Sites, the one most along its parent's bone to it: a head runs to the
+    head's top, not to the jaw or the eyes; a chest to the neck, not to a collar), the mean of its children for the
+    root, on along its parent's bone for an end without a site."""
     heads = np.zeros((data.num_joints, 3))
     for j, p in enumerate(data.parents):
         heads[j] = data.offsets[j] + (heads[p] if p >= 0 else 0.0)
-    children: list[list[int]] = [[] for _ in data.names]
+    ends: list[list[np.ndarray]] = [[] for _ in data.names]
     for j, p in enumerate(data.parents):
         if p >= 0:
-            children[p].append(j)
-    ends: dict[int, np.ndarray] = {}
+            ends[p].append(heads[j])
     for site in data.end_sites:
-        ends.setdefault(site.parent, np.asarray(site.offset, dtype=np.float64))
+        ends[site.parent].append(heads[site.parent] + np.asarray(site.offset, dtype=np.float64))
     size = max(float(np.ptp(heads, axis=0).max()), 1e-9)
     tails = heads.copy()
     for j, p in enumerate(data.parents):
-        kids = children[j]
-        bone = np.mean(heads[kids], axis=0) - heads[j] if kids else ends.get(j, np.zeros(3))
-        if kids and np.linalg.norm(bone) < 1e-3 * size:
-            bone = heads[kids[0]] - heads[j]
-        if np.linalg.norm(bone) < 1e-3 * size:  # an end without a site, or a site on its head
-            along = data.offsets[j] if p >= 0 and np.linalg.norm(data.offsets[j]) > 1e-3 * size else [0.0, 1.0, 0.0]
-            bone = np.asarray(along) / np.linalg.norm(along) * 0.05 * size
+        bones = [e - heads[j] for e in ends[j] if np.linalg.norm(e - heads[j]) > 1e-3 * size]
+        along = heads[j] - heads[p] if p >= 0 else np.zeros(3)
+        if np.linalg.norm(along) <= 1e-3 * size:
+            along = np.array([0.0, 1.0, 0.0])
+        if not bones:  # an end without a site: on along its parent's bone
+            bone = along / np.linalg.norm(along) * 0.05 * size
+        elif p < 0:
+            bone = np.mean(bones, axis=0) if np.linalg.norm(np.mean(bones, axis=0)) > 1e-3 * size else bones[0]
+        else:
+            bone = max(bones, key=lambda v: float(v @ along) / float(np.linalg.norm(v)))
         tails[j] = heads[j] + bone
     return heads, tails
 
