@@ -100,6 +100,7 @@ CONVENTIONS: dict[str, Convention] = {
     "rigify": Convention(shipped("RIGIFY"), root="root", between={"head": "DEF-spine.005"}, z_up=True),
     "metarig": Convention(shipped("METARIG", fingers=()), between={"head": "spine.005"}, a_pose_deg=20.0,
                           z_up=True, unit=0.001),
+    "mpfb": Convention(shipped("MPFB"), a_pose_deg=25.0, unit=0.01, z_up=True, fps=25.0),
     "generic": Convention(_generic(), ends={"head": "HeadEnd"}, unit=0.01, t_pose=True, fps=24.0),
     "generic_sided": Convention(shipped("GENERIC", body_only=True), a_pose_deg=15.0, order="YXZ"),
     "cmu": Convention(shipped("CMU"), amass=True),
