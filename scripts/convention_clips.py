@@ -24,23 +24,13 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from conventions import CONVENTIONS, convention_bvh  # noqa: E402 (tests/conventions.py)
 
-from dancenet_core.bvh import read_bvh, write_bvh_data  # noqa: E402
+from dancenet_core.bvh import write_bvh_data  # noqa: E402
 from dancenet_core.environment import default_data_dir  # noqa: E402
 from dancenet_core.jointmap import armature_pose, rotation_motion  # noqa: E402
-from dancenet_core.library.bvhclip import bvh_rig, rest_bones  # noqa: E402
-from dancenet_core.rigmap import RestBone, auto_map  # noqa: E402
+from dancenet_core.library.bvhclip import bvh_rig  # noqa: E402
 
 LEFT_OUT = {"05/05_01_poses.bvh"}  # a walk
 SPAN_S = (1.2, 60.0)
-
-
-def found_map(path: Path) -> str:
-    """The bone map Auto picks for a BVH's skeleton (its rest pose as the library reads it)."""
-    data = read_bvh(path)
-    heads, tails = rest_bones(data)
-    bones = [RestBone(n, data.names[p] if p >= 0 else None, heads[j], tails[j])
-             for j, (n, p) in enumerate(zip(data.names, data.parents, strict=True))]  # fmt: skip
-    return auto_map(bones, path.name).name
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -65,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         convention = names[i % len(names)]
         path = args.out / f"{i:02d}_{trial.stem.removesuffix('_poses')}_{convention}.bvh"
         write_bvh_data(path, convention_bvh(span, CONVENTIONS[convention]))
-        print(f"{path.name:40s} {convention:18s} {span.duration:5.1f} s  Auto: {found_map(path)}")
+        print(f"{path.name:40s} {convention:18s} {span.duration:5.1f} s  Auto: {bvh_rig(path).convention}")
     return 0
 
 

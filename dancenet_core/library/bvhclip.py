@@ -4,10 +4,10 @@ alike.
 
 Which joint is which comes from the shared bone mapper (`rigmap.humanoid_joints`: the shipped maps by names, then
 the skeleton's shape, or a map the folder's manifest names), run on the file's rest pose: each joint a bone from
-its head on to its child or End Site (`rest_bones`). The rest
-pose may stand along any axis, in any unit, any pose; the motion's world may stand along another (AMASS's CMU files
-rest Y-up and move Z-up): it is turned onto the rest's. A first frame an exporter prepends in the rest pose
-(iClone's T-pose), followed by a jump into the dance, is dropped.
+its head on to its child or End Site (`rest_bones`). The rest pose may stand along any axis, in any unit, any pose;
+the motion's world may stand along another (AMASS's CMU files rest Y-up and move Z-up): it is turned onto the
+rest's. A first frame an exporter prepends in the rest pose (iClone's T-pose), followed by a jump into the dance, is
+dropped.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from scipy.spatial.transform import Rotation
 from ..bvh import BvhData, read_bvh
 from ..errors import DanceNetError
 from ..jointmap import min_rotation, up_rotation
-from ..rigmap import BoneMap, RestBone, humanoid_joints
+from ..rigmap import BoneMap, RestBone
+from ..rigmap.humanoid import mapped_humanoid
 from ..skeleton import JOINT_INDEX
 
 REST_DEG = 0.5  # a frame whose mapped joints all turn less than this from the rest pose is the rest pose
@@ -34,12 +35,13 @@ _TO_Z_UP = [Rotation.from_euler("x", a, degrees=True) for a in (90, 0, -90, 180)
 class BvhRig(NamedTuple):
     """A BVH as a rig's clip: our joints the file has (`joints`, ascending), each one's bone's world rest matrix
     [K, 4, 4] and world matrix per frame [T, K, 4, 4] (the head at the translation, the Y axis along the bone; the
-    file's units), and the frame rate."""
+    file's units), the frame rate, and the bone map that read the skeleton (the convention found)."""
 
     joints: list[int]
     rest: np.ndarray
     pose: np.ndarray
     fps: float
+    convention: str
 
 
 def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
@@ -47,7 +49,7 @@ def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
     humanoid's or a file that is no BVH."""
     data = read_bvh(path)
     heads, tails = rest_bones(data)
-    mapped = _mapped(data, heads, tails, path.name, bone_map)
+    convention, mapped = _mapped(data, heads, tails, path.name, bone_map)
     joints = sorted(mapped)
     cols = [mapped[j] for j in joints]
     rest_rot = min_rotation(np.array([0.0, 1.0, 0.0]), tails[cols] - heads[cols])
@@ -58,7 +60,7 @@ def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
     rest[:, :3, :3], rest[:, :3, 3], rest[:, 3, 3] = rest_rot, heads[cols], 1.0
     pose = np.zeros((data.num_frames - first, len(cols), 4, 4))
     pose[..., :3, :3], pose[..., :3, 3], pose[..., 3, 3] = world_r[first:] @ rest_rot, world_p[first:], 1.0
-    return BvhRig(joints, rest, pose, data.fps)
+    return BvhRig(joints, rest, pose, data.fps, convention)
 
 
 def rest_bones(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
@@ -93,29 +95,29 @@ def rest_bones(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _mapped(data: BvhData, heads: np.ndarray, tails: np.ndarray, name: str,
-            bone_map: BoneMap | None) -> dict[int, int]:
+            bone_map: BoneMap | None) -> tuple[str, dict[int, int]]:
     """Our joint -> the file's joint index, by the bone mapper on the rest pose turned Z up: the first way up
     (the usual BVH Y up first) under which the head stands above the pelvis."""
     index = {n: i for i, n in enumerate(data.names)}
     parents = [data.names[p] if p >= 0 else None for p in data.parents]
     first_error: DanceNetError | None = None
-    found: dict[int, str] | None = None
+    found: tuple[str, dict[int, str]] | None = None
     for turn in _TO_Z_UP:
         h, t = turn.apply(heads), turn.apply(tails)
         bones = [RestBone(n, parents[j], h[j], t[j]) for j, n in enumerate(data.names)]
         try:
-            joints = humanoid_joints(bones, name, bone_map)
+            convention, joints = mapped_humanoid(bones, name, bone_map)
         except DanceNetError as e:
             first_error = first_error or e
             continue
-        found = found or joints
+        found = found or (convention, joints)
         up = h[index[joints[JOINT_INDEX["head"]]]] - h[index[joints[JOINT_INDEX["pelvis"]]]]
         if up[2] > 0.5 * np.linalg.norm(up):
-            found = joints
+            found = convention, joints
             break
     if found is None:
         raise DanceNetError(f"{first_error}; name its bones in a bone map (docs/library.md)")
-    return {j: index[b] for j, b in found.items()}
+    return found[0], {j: index[b] for j, b in found[1].items()}
 
 
 def _upright(positions: np.ndarray, rotations: np.ndarray, rest: np.ndarray,

@@ -18,6 +18,13 @@ def humanoid_joints(bones: Sequence[RestBone], name: str, bone_map: BoneMap | No
     """Our joint index (`skeleton.JOINT_INDEX`) -> the bone of `bones` that plays it, by `bone_map` if given, else
     Auto. A one-line DanceNetError naming what is missing (no legs, two hips, the joints no bone was found for)
     when the skeleton cannot be read as one humanoid's."""
+    return mapped_humanoid(bones, name, bone_map)[1]
+
+
+def mapped_humanoid(bones: Sequence[RestBone], name: str,
+                    bone_map: BoneMap | None = None) -> tuple[str, dict[int, str]]:
+    """`humanoid_joints`, with the name of the bone map that read them (the convention found: "Mixamo",
+    "VRM + shape", ...)."""
     names = [b.name for b in bones]
     chosen = bone_map if bone_map is not None else auto_map(bones, name)
     found, _ = match(chosen, names)
@@ -32,7 +39,7 @@ def humanoid_joints(bones: Sequence[RestBone], name: str, bone_map: BoneMap | No
     if lacks:
         shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
         raise DanceNetError(f"{name}: not a humanoid skeleton ({len(names)} bones: {shown}): {'; '.join(lacks)}")
-    return {JOINT_INDEX[j]: b for j, b in found.items()}
+    return chosen.name, {JOINT_INDEX[j]: b for j, b in found.items()}
 
 
 def _lacks(found: dict[str, str]) -> list[str]:

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.errors import DanceNetError
 from dancenet_core.library.build import build_library, read_clip
+from dancenet_core.library.bvhclip import bvh_rig
 from dancenet_core.motion import Motion
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, JOINT_NAMES
 
@@ -50,6 +51,12 @@ def reference(tmp_path: Path, motion: Motion) -> Motion:
 
 # A few dancers' sizes, so the reading is checked on proportions and not on ours alone.
 SCALES = {"mixamo": 1.08, "vrm": 0.9, "daz": 1.1, "mmd": 0.95, "cmu": 1.05}
+# The bone map Auto reads each convention by.
+FOUND = {"mixamo": "Mixamo", "mixamo_bare": "Mixamo", "mixamo1_handless": "Mixamo", "vrm": "VRM", "vrm_humanoid": "VRM",
+         "unreal": "Unreal Manny/Quinn", "character_creator": "Character Creator", "rokoko": "Rokoko",
+         "daz": "DAZ Genesis", "mmd": "MMD", "rigify": "Rigify", "metarig": "Rigify metarig",
+         "mpfb": "MakeHuman/MPFB", "generic": "Generic names", "generic_sided": "Generic names", "cmu": "CMU",
+         "ours_z_up_mm": "SMPL-X"}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", list(CONVENTIONS))
@@ -58,6 +65,7 @@ def test_a_clip_in_each_convention_reads_as_the_dance_it_is(tmp_path: Path, name
     motion = dance(scale=SCALES.get(name, 1.0))
     write_bvh_data(tmp_path / f"{name}.bvh", convention_bvh(motion, conv))
     got = read_clip(tmp_path / f"{name}.bvh")
+    assert bvh_rig(tmp_path / f"{name}.bvh").convention == FOUND[name]
     want = reference(tmp_path, motion)
     assert got.num_frames == want.num_frames  # a prepended T-pose frame is not danced
     assert body_error(got, want) < 0.01, name
