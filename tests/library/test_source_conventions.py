@@ -72,6 +72,16 @@ def test_a_clip_in_each_convention_reads_as_the_dance_it_is(tmp_path: Path, name
     assert np.allclose(got.skeleton.offsets[:BODY_JOINTS], want.skeleton.offsets[:BODY_JOINTS], atol=1e-3)
 
 
+def test_mmd_names_in_shift_jis_read(tmp_path: Path) -> None:
+    """Japanese tools write MMD's bone names in Shift-JIS, not UTF-8."""
+    motion = dance()
+    write_bvh_data(tmp_path / "utf8.bvh", convention_bvh(motion, CONVENTIONS["mmd"]))
+    text = (tmp_path / "utf8.bvh").read_text(encoding="utf-8")
+    (tmp_path / "sjis.bvh").write_bytes(text.encode("cp932"))
+    assert bvh_rig(tmp_path / "sjis.bvh").convention == "MMD"
+    assert body_error(read_clip(tmp_path / "sjis.bvh"), reference(tmp_path, motion)) < 0.01
+
+
 @pytest.mark.parametrize("variant", [{"unit": 0.001}, {"unit": 0.0254}, {"unit": 1.0, "z_up": True},
                                      {"fps": 120.0}, {"a_pose_deg": 45.0, "t_pose": True}])
 def test_units_up_axes_rates_and_rests_read_alike(tmp_path: Path, variant: dict) -> None:
