@@ -26,7 +26,8 @@ MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
     "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
     "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "MMD": "mmd.json",
-    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "CMU": "cmu.json", "GENERIC": "generic.json",
+    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "XSENS": "xsens.json", "MOTIVE": "motive.json",
+    "CMU": "cmu.json", "GENERIC": "generic.json",
 }  # fmt: skip
 
 # Joints a bone map must name (and the rig must have) for a dance to read as that dance.
