@@ -9,6 +9,7 @@ by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import sys
@@ -50,6 +51,7 @@ class BoneMap:
     by_shape: frozenset[str] = frozenset()  # joints Auto found by the skeleton's shape, not by a name
 
 
+@functools.lru_cache(maxsize=65536)  # Auto compares every bone's name with every map's, for every clip of a library
 def name_key(name: str) -> tuple[str, str]:
     """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
     case, width and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh"), and
