@@ -26,7 +26,7 @@ from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
 from .rigmap import load_shipped
-from .rootmotion import UNITS
+from .shaping.rootmotion import UNITS
 from .skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, EndSite, Skeleton
 
 

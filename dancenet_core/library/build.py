@@ -30,11 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DanceNetError, GenerationCancelled, first_line
-from ..floor import floor_track
 from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
 from ..rigmap import BoneMap, load_file
+from ..shaping.floor import floor_track
 from .analysis import ClipAnalysis, analyze_clip
 from .bvhclip import bvh_rig
 from .match import frames_of

@@ -40,7 +40,7 @@ REQUIRED_JOINTS: tuple[str, ...] = (
 
 # The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
 # count of spine bones; the dance's turn of those a rig lacks is spread over those it has (the add-on's
-# keyframes.retarget; `jointmap.armature_pose` when a clip is read).
+# retarget.retarget; `jointmap.armature_pose` when a clip is read).
 SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
 
 
