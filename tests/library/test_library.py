@@ -17,7 +17,7 @@ from dancenet_core.beats import kinematic_velocity
 from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.cli import main
 from dancenet_core.evaluation.metrics import foot_sliding
-from dancenet_core.generate import generate_dance, shape_takes
+from dancenet_core.generate import generate_dance
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
@@ -27,6 +27,7 @@ from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
 from dancenet_core.request import DanceRequest
+from dancenet_core.shaping.takes import shape_takes
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0
@@ -208,7 +209,8 @@ def test_bad_libraries_answer_in_one_line_or_dance(tmp_path: Path, monkeypatch: 
     capsys.readouterr()
     assert _cli("library", "build", str(odd)) == 2
     err = capsys.readouterr().err
-    assert "not a skeleton the library reads" in err and len(err.strip().splitlines()) == 1
+    assert "snake.bvh: not a humanoid skeleton (3 bones: a, b, c): no legs; no arms; no bone for pelvis, neck, " \
+           "head; name its bones in a bone map" in err and len(err.strip().splitlines()) == 1
 
     mixed = tmp_path / "mixed"
     (mixed / "waltz").mkdir(parents=True)
