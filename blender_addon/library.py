@@ -140,7 +140,7 @@ def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
     def from_folder(results: list[Any]) -> job.Work:
         sampled = dict(zip(fbx, results, strict=True))
         return lambda progress, should_cancel: summary(build_library(
-            folder, progress=progress, should_cancel=should_cancel, fbx=sampled)[0])
+            folder, progress=progress, should_cancel=should_cancel, fbx_samples=sampled)[0])
 
     return job.Staged(steps, from_folder, "dancenet-build-library")
 

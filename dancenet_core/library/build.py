@@ -23,14 +23,19 @@ Torch-free and without the data package (the add-on's Build Library runs it insi
 from __future__ import annotations
 
 import csv
+import multiprocessing as mp
+import os
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..bvh import read_bvh
+from ..environment import default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..floor import floor_track
 from ..jointmap import CMU, armature_pose, rotation_motion, source_pose, up_rotation
@@ -39,6 +44,7 @@ from ..motion import Motion
 from ..progress import StageProgress
 from ..rootmotion import UNITS, read_dance_bvh
 from ..skeleton import JOINT_INDEX, JOINT_NAMES
+from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
 from .match import frames_of
 from .store import LIBRARY_FPS, MotionLibrary, built_path, clip_files, library_path
@@ -171,23 +177,32 @@ def is_fbx(path: Path) -> bool:
 
 
 def cached(path: Path, force: bool, report: Callable[[str], object]) -> MotionLibrary | None:
-    """The library built before at `path`, if any (None: build it, also when that one is damaged)."""
+    """The library built before at `path`, if any (None: build it, also when that one is damaged, or when it
+    left its FBX files out for want of Blender's module, which is there now)."""
     if path.is_file() and not force:
         try:
-            return MotionLibrary.load(path)
+            library = MotionLibrary.load(path)
         except ValueError as e:
             report(f"rebuilding the library: {first_line(e)}")
+            return None
+        if not any(n.startswith(NO_BLENDER) for n in library.notes) or not fbx.bpy_installed():
+            return library
     return None
+
+
+NO_BLENDER = "left out the FBX files"  # a build without Blender's module says so in its notes
 
 
 def build_library(folder: str | Path, force: bool = False, report: Callable[[str], object] = print,
                   progress: StageProgress | None = None, should_cancel: Callable[[], bool] | None = None,
-                  fbx: Mapping[Path, ArmatureClip | str] | None = None) -> tuple[MotionLibrary, Path]:
+                  fbx_samples: Mapping[Path, fbx.RigSample | str] | None = None,
+                  workers: int | None = None) -> tuple[MotionLibrary, Path]:
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
-    written). `fbx`: the folder's FBX files as Blender sampled them (or why it could not, one line each that
-    names the file);
-    without it a folder with FBX files is answered in one line (only Blender reads them)."""
+    written). FBX files are read from what Blender sampled of them: `fbx_samples` where the caller sampled them
+    (the add-on in Blender: each file's sample, or the line saying why it has none), else by worker processes
+    with Blender's module (`library/fbx.py`); without that module they are left out in one line. Clips are
+    read by `workers` processes side by side (default `environment.default_workers`)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
@@ -198,27 +213,48 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     if not files:
         raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; in "
                             "Blender also .fbx)")
+    workers = default_workers() if workers is None else workers
     fbx_files = [f for f in files if is_fbx(f)]
-    if fbx_files and fbx is None:
-        raise DanceNetError(f"{folder} holds {len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''} "
-                            f"({fbx_files[0].name}...), which only Blender reads: build this folder with Build "
-                            "Library in the DanceNet add-on's panel")
+    notes = []
+    if fbx_files and fbx_samples is None and not fbx.bpy_installed():
+        many = f"{len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''}"
+        notes.append(f"{NO_BLENDER} ({many}: {fbx_files[0].name}...): reading them needs Blender's Python "
+                     f"module: {fbx.INSTALL_HINT}")
+        report(notes[-1])
+        files = [f for f in files if not is_fbx(f)]
+        if not files:
+            raise DanceNetError(f"{folder} holds only FBX files, and reading them needs Blender's Python module: "
+                                f"{fbx.INSTALL_HINT}")
+    elif fbx_files and fbx_samples is None:
+        count = iter(range(1, len(fbx_files) + 1))
+        fbx_samples = fbx.sample_files(
+            fbx_files, workers, should_cancel=should_cancel,
+            done=lambda f: progress and progress(f"sampling {f.name}", next(count) / len(fbx_files)))
+    if should_cancel is not None and should_cancel():
+        raise GenerationCancelled
     hints = clip_hints(folder, files)
-    clips, notes = _read_clips(
+    clips, left = _read_clips(
         [(f.name, str(f.relative_to(folder)), hints[f],
-          lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)) for f in files],
-        report, progress, should_cancel)
+          partial(_fbx_clip, f, (fbx_samples or {}).get(f), hints[f]) if is_fbx(f) else partial(read_clip, f))
+         for f in files], report, progress, should_cancel, workers)
+    notes += left
     if not clips:
-        first = notes[0].removeprefix("left out ")
+        first = left[0].removeprefix("left out ")
         raise DanceNetError(f"none of the {len(files)} clips in {folder} could be read: {first}")
     return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
 
 
-def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
-    """An FBX file's clip from what Blender sampled of it."""
-    if not isinstance(sampled, ArmatureClip):
+def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints) -> Motion:
+    """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints."""
+    if not isinstance(sampled, fbx.RigSample):
         raise DanceNetError(sampled or f"{path.name}: not sampled in Blender")
-    return armature_motion(sampled)
+    from ..rigmap import humanoid_joints
+
+    joints = humanoid_joints(sampled.rest_bones(), path.name)
+    order = sorted(joints)
+    index = [sampled.names.index(joints[j]) for j in order]
+    return armature_motion(ArmatureClip(path.name, hint.style, order, sampled.rest[index], sampled.pose[:, index],
+                                        sampled.fps, hint.bpm, hint.meter))
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
@@ -242,8 +278,8 @@ def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes:
     if not clips:
         raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
     done, left = _read_clips(
-        [("a clip", c, ClipHints(), lambda c=c: _not_sampled(c)) if isinstance(c, str)
-         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), lambda c=c: armature_motion(c)) for c in clips],
+        [("a clip", c, ClipHints(), partial(_not_sampled, c)) if isinstance(c, str)
+         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), partial(armature_motion, c)) for c in clips],
         report, progress, should_cancel)
     if not done:
         raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
@@ -256,21 +292,49 @@ def _not_sampled(why: str) -> Motion:
 
 
 def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], Motion]]], report: Callable[[str], object],
-                progress: StageProgress | None, should_cancel: Callable[[], bool] | None
+                progress: StageProgress | None, should_cancel: Callable[[], bool] | None, workers: int = 1
                 ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
-    """Each (shown name, clip name, hints, read) read and analysed in turn, between cancel checks: the clips, and a
+    """Each (shown name, clip name, hints, read) read and analysed, by `workers` processes side by side where
+    there are several (forked: nothing is imported again), between cancel checks: the clips in order, and a
     "left out ..." line (also reported) for each that could not be read."""
-    clips, notes = [], []
-    for i, (shown, name, hint, read) in enumerate(items):
-        if should_cancel is not None and should_cancel():
-            raise GenerationCancelled
-        if progress is not None:
-            progress(f"reading {shown}", i / len(items))
+    results: list[tuple[str, str, Motion, ClipAnalysis] | str] = []
+    if workers > 1 and len(items) > 1 and "fork" in mp.get_all_start_methods():
+        pool = ProcessPoolExecutor(min(workers, len(items)), mp_context=mp.get_context("fork"),
+                                   initializer=end_with_parent, initargs=(os.getpid(),))
         try:
-            motion = read()
-        except DanceNetError as e:
-            notes.append(f"left out {first_line(e)}")
-            report(notes[-1])
-            continue
-        clips.append((name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)))
+            futures = [pool.submit(_read_one, item) for item in items]
+            for i, future in enumerate(futures):
+                while not future.done():
+                    if should_cancel is not None and should_cancel():
+                        raise GenerationCancelled
+                    wait([future], timeout=0.1)
+                if progress is not None:
+                    progress(f"reading {items[i][0]}", (i + 1) / len(items))
+                results.append(future.result())
+        finally:
+            stop_pool(pool) if len(results) < len(items) else pool.shutdown()
+    else:
+        for i, item in enumerate(items):
+            if should_cancel is not None and should_cancel():
+                raise GenerationCancelled
+            if progress is not None:
+                progress(f"reading {item[0]}", i / len(items))
+            results.append(_read_one(item))
+    clips, notes = [], []
+    for r in results:
+        if isinstance(r, str):
+            notes.append(r)
+            report(r)
+        else:
+            clips.append(r)
     return clips, notes
+
+
+def _read_one(item: tuple[str, str, ClipHints, Callable[[], Motion]]) -> tuple[str, str, Motion, ClipAnalysis] | str:
+    """A clip read and analysed, or the "left out ..." line saying why it could not be."""
+    _shown, name, hint, read = item
+    try:
+        motion = read()
+    except DanceNetError as e:
+        return f"left out {first_line(e)}"
+    return name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)
