@@ -29,6 +29,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..environment import cache_root
 from ..errors import DanceNetError
+from ..rigmap import RestBone
 
 SAMPLE_VERSION = "fbx-sample-1"  # change whenever what a sample holds changes
 DANCER_M = (0.5, 2.5)  # a rig whose rest pose is this tall is taken to be in metres already
@@ -71,9 +72,7 @@ class RigSample:
         pose[..., :3, 3] *= unit
         return RigSample(self.names, self.parents, self.heads * unit, self.tails * unit, rest, pose, self.fps)
 
-    def rest_bones(self) -> list:
-        from ..rigmap import RestBone
-
+    def rest_bones(self) -> list[RestBone]:
         return [RestBone(n, self.names[p] if p >= 0 else None, h, t)
                 for n, p, h, t in zip(self.names, self.parents.tolist(), self.heads, self.tails, strict=True)]
 
