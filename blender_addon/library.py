@@ -104,13 +104,15 @@ def summary(library: Any, what: str = "file") -> str:
 
 
 def _noted(name: str, sample: Callable[[], Any]) -> Any:
-    """A sampled clip, or the one line saying why clip `name` could not be sampled (one the build leaves out)."""
+    """A sampled clip, or the one line saying why clip `name` could not be sampled (one the build leaves out;
+    without a name: an FBX file's, which the build names)."""
     try:
         return sample()
     except DanceNetError as e:
-        return f"{name}: {e}"
+        why = str(e)
     except Exception as e:
-        return f"{name}: {error_message(e, 'Sampling')}"
+        why = error_message(e, "Sampling")
+    return f"{name}: {why}" if name else why
 
 
 def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
@@ -135,7 +137,7 @@ def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
     if folder is None:
         raise DanceNetError("Choose the Library folder of BVH clips to build (the shipped library needs no build)")
     fbx = [] if not folder.is_dir() or library_path(folder).is_file() else [f for f in clip_files(folder) if is_fbx(f)]
-    steps = [(f"importing {f.name}", partial(_noted, f.name, partial(rigclips.sample_fbx, f))) for f in fbx]
+    steps = [(f"importing {f.name}", partial(_noted, "", partial(rigclips.sample_fbx, f))) for f in fbx]
 
     def from_folder(results: list[Any]) -> job.Work:
         sampled = dict(zip(fbx, results, strict=True))

@@ -1,18 +1,23 @@
 """FBX clips written by Blender, for the tests and the benchmark: rigs of several conventions danced by one
 made-up motion, exported by Blender's FBX exporter. Run as a process of its own with Blender's module
-(`python tests/library/fbx_rigs.py OUT [--seconds S] [--vertices N] [--copies K]`); the motion and the rigs'
-layout import without bpy, so a test compares what the library read with what was danced.
+(`python tests/fbx_rigs.py OUT [--seconds S] [--vertices N] [--copies K]`; `written` runs it once per test session);
+the motion and the rigs' layout import without bpy, so a test compares what the library read with what was danced.
 
 Rigs (all `SIZE` times our skeleton, so their rest pose is 1.75 m from feet to head):
 - `mixamo`: `mixamorig:` names with every finger and the `_End` leaves (65 bones), stored as a Mixamo download
   imports: Y-up centimetres under an object turned 90 degrees and scaled 0.01, with a skinned mesh;
 - `generic`: VRM-like `Hips/Spine/LeftUpperLeg` names, Z up in metres, no mesh, T-pose;
-- `apose`: Unreal's names (`pelvis`, `thigh_l`), Z up in metres, resting in an A-pose (arms 45 degrees down).
+- `apose`: Unreal's names (`pelvis`, `thigh_l`), Z up in metres, resting in an A-pose (arms 45 degrees down);
+- `mixamo_node_scaled`: the Mixamo-like rig with a 0.01 scale on the armature's own FBX node over its centimetre
+  bones in a centimetre file (exported with a global scale of 0.01), which Blender imports at a hundredth of its
+  size (0.019 m tall): the Mixamo downloads Build Library refused.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -27,10 +32,13 @@ SIZE = 1.1
 FPS = 30.0
 RX90 = Rotation.from_euler("x", 90, degrees=True).as_matrix()  # our Y-up -> Blender's Z-up
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
-RIGS = ("mixamo", "generic", "apose")
+FILES = {"mixamo": ("mixamo", {}), "generic": ("generic", {}), "apose": ("apose", {}),
+         "mixamo_node_scaled": ("mixamo", {"global_scale": 0.01})}  # file -> (rig, the exporter's options)
+SECONDS = 4.0
+_WRITTEN: dict[str, Path] = {}
 
 
-def dance(seconds: float = 4.0, seed: int = 0) -> Motion:
+def dance(seconds: float = SECONDS, seed: int = 0) -> Motion:
     """Every body joint turning smoothly about all three axes, fingers curling, the pelvis travelling and
     bobbing (our skeleton, Y up, metres)."""
     rng = np.random.default_rng(seed)
@@ -114,8 +122,7 @@ def rows(kind: str) -> list[tuple[str, str | None, np.ndarray, np.ndarray]]:
 
 def _keys(rig, motion: Motion, kind: str) -> None:
     """`motion` keyed on every bone of `rig`: each mapped bone turned in the world as our joint turns from the
-    rig's rest pose, its head on our joint; the other bones follow their parents."""
-    import bpy
+    rig's rest pose, its head on our joint; the other bones follow their parents. Frame 0 holds the rest pose."""
 
     s = DEFAULT_SKELETON.scaled(SIZE)
     bone = names(kind)
@@ -147,14 +154,14 @@ def _keys(rig, motion: Motion, kind: str) -> None:
     rig.animation_data_create()
     for pb in rig.pose.bones:
         pb.rotation_mode = "QUATERNION"
-        pb.keyframe_insert("location", frame=1)
-        pb.keyframe_insert("rotation_quaternion", frame=1)
+        pb.keyframe_insert("location", frame=0)
+        pb.keyframe_insert("rotation_quaternion", frame=0)
     from dancenet_core.library.fbx_worker import _fcurves
 
-    frames = np.arange(1, n + 1, dtype=np.float64)
+    frames = np.arange(0, n + 1, dtype=np.float64)  # frame 0: the rest pose, where the rig is exported
     for fc in _fcurves(rig.animation_data.action):
         name = fc.data_path.split('"')[1]
-        m = basis[name]
+        m = np.concatenate([np.eye(4)[None], basis[name]])
         if fc.data_path.endswith("location"):
             values = m[:, fc.array_index, 3]
         else:
@@ -165,9 +172,9 @@ def _keys(rig, motion: Motion, kind: str) -> None:
                 if q[k] @ q[k - 1] < 0:
                     q[k] = -q[k]
             values = q[:, fc.array_index]
-        fc.keyframe_points.add(n - 1)
+        fc.keyframe_points.add(n)
         fc.keyframe_points.foreach_set("co", np.c_[frames, values].ravel())
-        fc.keyframe_points.foreach_set("interpolation", np.full(n, 1, dtype=np.int32))  # LINEAR
+        fc.keyframe_points.foreach_set("interpolation", np.full(n + 1, 1, dtype=np.int32))  # LINEAR
         fc.update()
 
 
@@ -224,6 +231,7 @@ def write_rig(kind: str, path: Path, motion: Motion, vertices: int = 0, **export
     if vertices:
         _skin(rig, max(8, vertices // len(rig.data.bones)))
     scene.frame_start, scene.frame_end = 1, motion.num_frames
+    scene.frame_set(0)  # the exporter writes the bones' nodes as posed now: their rest pose, as other tools do
     bpy.ops.export_scene.fbx(filepath=str(path), use_selection=False, object_types={"ARMATURE", "MESH"},
                              add_leaf_bones=False, bake_anim_use_all_actions=False, bake_anim_use_nla_strips=False,
                              bake_anim_simplify_factor=0.0, **export)
@@ -232,7 +240,7 @@ def write_rig(kind: str, path: Path, motion: Motion, vertices: int = 0, **export
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser()
     p.add_argument("out", type=Path)
-    p.add_argument("--seconds", type=float, default=4.0)
+    p.add_argument("--seconds", type=float, default=SECONDS)
     p.add_argument("--vertices", type=int, default=600, help="the Mixamo-like rig's skinned mesh")
     p.add_argument("--copies", type=int, default=0, help="only the Mixamo-like rig, this many takes of it")
     args = p.parse_args(argv)
@@ -241,9 +249,21 @@ def main(argv: list[str]) -> int:
         for k in range(args.copies):
             write_rig("mixamo", args.out / f"mixamo_{k:02d}.fbx", dance(args.seconds, seed=k), args.vertices)
         return 0
-    for kind in RIGS:
-        write_rig(kind, args.out / f"{kind}.fbx", dance(args.seconds), args.vertices if kind == "mixamo" else 0)
+    for name, (kind, export) in FILES.items():
+        write_rig(kind, args.out / f"{name}.fbx", dance(args.seconds), args.vertices if kind == "mixamo" else 0,
+                  **export)
     return 0
+
+
+def written(tmp_path_factory) -> Path:
+    """A folder of the `FILES`, written once per test session by Blender's module in a process of its own."""
+    if "folder" not in _WRITTEN:
+        folder = tmp_path_factory.mktemp("fbx_rigs")
+        root = Path(__file__).resolve().parents[1]
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]))
+        subprocess.run([sys.executable, __file__, str(folder)], check=True, env=env, capture_output=True)
+        _WRITTEN["folder"] = folder
+    return _WRITTEN["folder"]
 
 
 if __name__ == "__main__":

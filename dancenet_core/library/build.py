@@ -183,7 +183,7 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
     written). FBX files are read from what Blender sampled of them: `fbx_samples` where the caller sampled them
-    (the add-on in Blender: each file's sample, or the line saying why it has none), else by worker processes
+    (the add-on in Blender: each file's sample, or why it has none, without the file's name), else by worker processes
     with Blender's module (`library/fbx.py`); without that module they are left out in one line. Clips are
     read by `workers` processes side by side (default `environment.default_workers`)."""
     folder = Path(folder)
@@ -230,7 +230,7 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
 def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints) -> Motion:
     """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints."""
     if not isinstance(sampled, fbx.RigSample):
-        raise DanceNetError(sampled or f"{path.name}: not sampled in Blender")
+        raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
     joints = humanoid_joints(sampled.rest_bones(), path.name, hint.bone_map)
     order = sorted(joints)
     index = [sampled.names.index(joints[j]) for j in order]

@@ -78,7 +78,8 @@ class RigSample:
 
 
 def save_sample(path: Path, sample: RigSample | str) -> None:
-    """A sample (or the one line saying why the file has none) written whole to `path`."""
+    """A sample (or the line saying why the file has none, without the file's name: another file may have the
+    same bytes) written whole to `path`."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         if isinstance(sample, str):
@@ -170,7 +171,7 @@ def sample_files(files: Sequence[Path], workers: int, done: Callable[[Path], obj
                  should_cancel: Callable[[], bool] | None = None) -> dict[Path, RigSample | str]:
     """Each FBX file's sample, from the cache or sampled now by up to `workers` worker processes side by side
     (each reads one file after another); `done` hears each file as it is read. A file that cannot be sampled
-    gets its one-line reason instead."""
+    gets the line saying why instead (without its name)."""
     out: dict[Path, RigSample | str] = {}
     todo: queue.SimpleQueue[Path] = queue.SimpleQueue()
     for f in files:
@@ -193,14 +194,14 @@ def sample_files(files: Sequence[Path], workers: int, done: Callable[[Path], obj
                 worker = worker or Worker()
                 try:
                     why = worker.sample(f.resolve(), where)
-                except DanceNetError as e:  # the worker died: this file's line, not cached; a fresh one goes on
-                    result: RigSample | str = f"{f.name}: {e}"
+                except DanceNetError as e:  # the worker died: why, not cached; a fresh worker goes on
+                    result: RigSample | str = str(e)
                     worker.close()
                     worker = None
                 else:
                     if why is not None:
                         save_sample(where, why)
-                    result = load_sample(where) or f"{f.name}: its sample could not be read back"
+                    result = load_sample(where) or "its sample could not be read back"
                 with lock:
                     out[f] = result
                 done(f)

@@ -74,8 +74,11 @@ def import_fbx(path: Path) -> None:
     if not hasattr(bpy.ops.import_scene, "fbx"):
         raise DanceNetError("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
     with open(path, "rb") as f:
-        if f.read(18) != b"Kaydara FBX Binary":
-            raise DanceNetError("an ASCII FBX file (Blender reads binary FBX only): save it as binary FBX")
+        head = f.read(1024)
+    if not head.startswith(b"Kaydara FBX Binary"):
+        if b"FBXHeaderExtension" in head or head.lstrip().startswith(b"; FBX"):
+            raise DanceNetError("an ASCII FBX file, which Blender's importer does not read: save it as binary FBX")
+        raise DanceNetError("not an FBX file (it does not begin as one)")
     try:
         bpy.ops.import_scene.fbx(filepath=str(path))
     except RuntimeError as e:  # an error, or the importer's traceback: its last line says what
