@@ -8,6 +8,7 @@ Rigs (all `SIZE` times our skeleton, so their rest pose is 1.75 m from feet to h
   imports: Y-up centimetres under an object turned 90 degrees and scaled 0.01, with a skinned mesh;
 - `generic`: VRM-like `Hips/Spine/LeftUpperLeg` names, Z up in metres, no mesh, T-pose;
 - `apose`: Unreal's names (`pelvis`, `thigh_l`), Z up in metres, resting in an A-pose (arms 45 degrees down);
+- `mixamo_ascii`: the Mixamo-like rig's file rewritten as ASCII FBX 7.4 (`write_ascii`);
 - `mixamo_node_scaled`: the Mixamo-like rig with a 0.01 scale on the armature's own FBX node over its centimetre
   bones in a centimetre file (exported with a global scale of 0.01), which Blender imports at a hundredth of its
   size (0.019 m tall): the Mixamo downloads Build Library refused.
@@ -33,7 +34,8 @@ FPS = 30.0
 RX90 = Rotation.from_euler("x", 90, degrees=True).as_matrix()  # our Y-up -> Blender's Z-up
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 FILES = {"mixamo": ("mixamo", {}), "generic": ("generic", {}), "apose": ("apose", {}),
-         "mixamo_node_scaled": ("mixamo", {"global_scale": 0.01})}  # file -> (rig, the exporter's options)
+         "mixamo_node_scaled": ("mixamo", {"global_scale": 0.01}),
+         "mixamo_ascii": ("mixamo", {})}  # file -> (rig, the exporter's options); *_ascii: rewritten as ASCII FBX
 SECONDS = 4.0
 _WRITTEN: dict[str, Path] = {}
 
@@ -250,9 +252,59 @@ def main(argv: list[str]) -> int:
             write_rig("mixamo", args.out / f"mixamo_{k:02d}.fbx", dance(args.seconds, seed=k), args.vertices)
         return 0
     for name, (kind, export) in FILES.items():
-        write_rig(kind, args.out / f"{name}.fbx", dance(args.seconds), args.vertices if kind == "mixamo" else 0,
-                  **export)
+        path = args.out / f"{name}.fbx"
+        write_rig(kind, path, dance(args.seconds), args.vertices if kind == "mixamo" else 0, **export)
+        if name.endswith("_ascii"):
+            write_ascii(path, path)
     return 0
+
+
+def _ascii_values(elem) -> str:
+    """An element's values as an ASCII FBX file writes them (binary "Name\\0\\1Class" is "Class::Name")."""
+    out = []
+    for value, kind in zip(elem.props, elem.props_type, strict=True):
+        kind = chr(kind)
+        if kind == "S":
+            name, _, cls = value.partition(b"\x00\x01")
+            text = (cls + b"::" + name if cls else name).decode("utf-8", "replace")
+            out.append('"' + text.replace('"', "&quot;") + '"')
+        elif kind in "BC":  # a flag
+            out.append("N" if value in (False, 0, b"N", b"F", b"\x00") else "Y")
+        elif kind in "il":
+            out.append(f"*{len(value)} {{\n\ta: " + ",".join(str(int(v)) for v in value) + "\n}")
+        elif kind in "fd":
+            out.append(f"*{len(value)} {{\n\ta: " + ",".join(repr(float(v)) for v in value) + "\n}")
+        elif kind in "DF":
+            out.append(repr(float(value)))
+        else:
+            out.append(str(int(value)))
+    return ",".join(out)
+
+
+def write_ascii(binary: Path, out: Path) -> None:
+    """A binary FBX file rewritten as ASCII FBX (as the FBX SDK writes it: `Name: values { children }`; raw
+    bytes, which only the header's file id holds, left out), by Blender's own FBX parser."""
+    from io_scene_fbx import parse_fbx
+
+    root, version = parse_fbx.parse(str(binary))
+    lines = [f"; FBX {version // 1000}.{version % 1000 // 100}.0 project file", ""]
+
+    def emit(elem, depth: int) -> None:
+        if b"R"[0] in elem.props_type:
+            return
+        pad = "\t" * depth
+        head = f"{pad}{elem.id.decode()}: {_ascii_values(elem)}"
+        if elem.elems or not elem.props:
+            lines.append(head + " {")
+            for child in elem.elems:
+                emit(child, depth + 1)
+            lines.append(pad + "}")
+        else:
+            lines.append(head)
+
+    for elem in root.elems:
+        emit(elem, 0)
+    out.write_text("\n".join(lines) + "\n")
 
 
 def written(tmp_path_factory) -> Path:

@@ -4,6 +4,8 @@ module of dancenet_core that imports bpy, so it runs only as a process of its ow
 keeps every other core module from importing it). The add-on imports its sampling (`sample_armature`,
 `import_fbx`) to read FBX files inside Blender the same way.
 
+An ASCII FBX file is rewritten as binary first (`ascii_to_binary`, by Blender's own FBX encoder).
+
 The worker reads jobs from stdin, one JSON object a line (`{"fbx": path, "out": path}`), imports each file into
 an empty factory scene, samples its animated armature (`RigSample`: every bone's world rest and per-frame
 matrices, in metres) and writes it to `out` (whole or not at all); it answers each job with one JSON line on its
@@ -16,7 +18,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import sys
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -69,21 +73,138 @@ def sample_armature(rig: bpy.types.Object, scene: bpy.types.Scene, frames: range
 
 
 def import_fbx(path: Path) -> None:
-    """`path` imported into the context's scene by Blender's FBX importer; a one-line DanceNetError when it
-    cannot be."""
+    """`path` imported into the context's scene by Blender's FBX importer (an ASCII file rewritten as binary
+    first: the importer reads binary only); a one-line DanceNetError when it cannot be."""
     if not hasattr(bpy.ops.import_scene, "fbx"):
         raise DanceNetError("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
     with open(path, "rb") as f:
         head = f.read(1024)
-    if not head.startswith(b"Kaydara FBX Binary"):
-        if b"FBXHeaderExtension" in head or head.lstrip().startswith(b"; FBX"):
-            raise DanceNetError("an ASCII FBX file, which Blender's importer does not read: save it as binary FBX")
-        raise DanceNetError("not an FBX file (it does not begin as one)")
-    try:
-        bpy.ops.import_scene.fbx(filepath=str(path))
-    except RuntimeError as e:  # an error, or the importer's traceback: its last line says what
-        why = str(e).strip().splitlines()[-1].removeprefix("Error: ")[:160]
-        raise DanceNetError(f"Blender could not import it ({why})") from e
+    with tempfile.TemporaryDirectory() as tmp:
+        if not head.startswith(b"Kaydara FBX Binary"):
+            if b"FBXHeaderExtension" not in head and not head.lstrip().startswith(b"; FBX"):
+                raise DanceNetError("not an FBX file (it does not begin as one)")
+            binary = Path(tmp) / "binary.fbx"
+            try:
+                ascii_to_binary(path.read_text(encoding="utf-8", errors="replace"), binary)
+            except (ValueError, IndexError, KeyError) as e:
+                raise DanceNetError(f"an ASCII FBX file that could not be read ({first_line(e)[:120]})") from e
+            path = binary
+        try:
+            bpy.ops.import_scene.fbx(filepath=str(path))
+        except RuntimeError as e:  # an error, or the importer's traceback: its last line says what
+            lines = [line.strip() for line in str(e).splitlines() if line.strip()]
+            said = [line for line in lines if not line.startswith("Location:")] or lines or ["no reason given"]
+            raise DanceNetError(f"Blender could not import it ({said[-1].removeprefix('Error: ')[:160]})") from e
+
+
+# An ASCII FBX file's values carry no binary type: each is typed as the binary format has it (what the importer
+# checks), by its property's type, its element's name, or its own look.
+_TOKEN = re.compile(r'\s*(?:;[^\n]*|(?P<key>[A-Za-z_][\w|]*)\s*:|"(?P<str>[^"]*)"|(?P<star>\*\d+)'
+                    r"|(?P<num>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|(?P<word>[A-Za-z_]\w*)|(?P<punct>[{},]))")
+_ARRAY_TYPES = {"KeyTime": "l", "KeyValueFloat": "f", "KeyAttrDataFloat": "f", **dict.fromkeys((
+    "PolygonVertexIndex", "Edges", "Materials", "UVIndex", "NormalsIndex", "BinormalsIndex", "TangentsIndex",
+    "ColorIndex", "Indexes", "KeyAttrFlags", "KeyAttrRefCount", "Smoothing", "VertexIndexArray"), "i")}
+_P_TYPES = {**dict.fromkeys((b"int", b"Integer", b"enum", b"Enum", b"bool", b"Bool", b"Visibility Inheritance"),
+                            "I"), **dict.fromkeys((b"KTime", b"ULongLong", b"LongLong"), "L"),
+            **dict.fromkeys((b"float", b"Float"), "F")}
+_INT64 = {"C", "Node", "LocalTime", "ReferenceTime"}
+_DOUBLE = {"Default", "DeformPercent", "Weight"}
+
+
+def _tokens(text: str) -> list[tuple[str, object]]:
+    """(kind, value) of an ASCII FBX file, comments dropped; an array (`*N { a: ... }`) as one ("array", text)."""
+    out: list[tuple[str, object]] = []
+    pos, end = 0, len(text)
+    while pos < end:
+        m = _TOKEN.match(text, pos)
+        if m is None:
+            if text[pos:].strip():
+                raise ValueError(f"unreadable text at character {pos}")
+            break
+        pos = m.end()
+        kind = m.lastgroup
+        if kind == "star":
+            close = text.index("}", pos)
+            body = text[text.index("{", pos) + 1:close].strip().removeprefix("a").lstrip().removeprefix(":")
+            out.append(("array", body))
+            pos = close + 1
+        elif kind is not None:
+            out.append((kind, m.group(kind)))
+    return out
+
+
+def _typed(elem: object, key: str, values: list[tuple[str, object]], under: str) -> None:
+    """`values` added to the binary element `elem` (`encode_bin.FBXElem`) with the types the binary format uses."""
+    ptype = values[1][1].encode() if key == "P" and len(values) > 1 else None
+    for i, (kind, v) in enumerate(values):
+        if kind == "str":
+            text = str(v)
+            if "::" in text and i < 2 and key != "P":  # an object's "Class::Name" is "Name\0\1Class" in binary
+                cls, name = text.split("::", 1)
+                elem.add_string(name.encode() + b"\x00\x01" + cls.encode())
+            else:
+                elem.add_string(text.encode())
+        elif kind == "word" and key != "P":  # a flag: Y or T, N or F
+            elem.add_char(b"Y" if v in ("Y", "T") else b"N")
+        elif kind == "word":
+            elem.add_string(str(v).encode())
+        elif kind == "array":
+            kind_of = _ARRAY_TYPES.get(key, "d")
+            numbers = np.array([x for x in str(v).replace("\n", "").split(",") if x.strip()], dtype=np.float64)
+            if kind_of == "d":
+                elem.add_float64_array(numbers)
+            elif kind_of == "f":
+                elem.add_float32_array(numbers.astype(np.float32))
+            elif kind_of == "l":
+                elem.add_int64_array(numbers.astype(np.int64))
+            else:
+                elem.add_int32_array(numbers.astype(np.int32))
+        else:
+            text = str(v)
+            whole = not any(c in text for c in ".eE")
+            if key == "P" and i >= 4:
+                kind_of = _P_TYPES.get(ptype, "D")
+            elif whole and (key in _INT64 or (under == "Objects" and i == 0) or abs(int(text)) >= 2**31):
+                kind_of = "L"
+            else:
+                kind_of = "I" if whole and key not in _DOUBLE else "D"
+            add, number = {"I": (elem.add_int32, int), "L": (elem.add_int64, int), "F": (elem.add_float32, float),
+                           "D": (elem.add_float64, float)}[kind_of]
+            add(number(float(text)) if number is int and not whole else number(text))
+
+
+def ascii_to_binary(text: str, out: Path) -> None:
+    """An ASCII FBX file's text written to `out` as binary FBX by Blender's own encoder."""
+    from io_scene_fbx import encode_bin
+
+    tokens = _tokens(text)
+    root = encode_bin.FBXElem(b"")
+    stack, names = [root], [""]
+    version, i = 7400, 0
+    while i < len(tokens):
+        kind, value = tokens[i]
+        if kind == "punct" and value == "}":
+            stack.pop()
+            names.pop()
+            i += 1
+            continue
+        if kind != "key":
+            raise ValueError(f"a value where a name was expected: {value}")
+        key, values, i = str(value), [], i + 1
+        while i < len(tokens) and tokens[i][0] not in ("key",) and tokens[i][1] not in ("{", "}"):
+            if tokens[i][1] != ",":
+                values.append(tokens[i])
+            i += 1
+        elem = encode_bin.FBXElem(key.encode())
+        _typed(elem, key, values, names[-1])
+        stack[-1].elems.append(elem)
+        if key == "FBXVersion" and values:
+            version = int(str(values[0][1]))
+        if i < len(tokens) and tokens[i][1] == "{":
+            stack.append(elem)
+            names.append(key)
+            i += 1
+    encode_bin.write(str(out), root, version)
 
 
 def animated_armature(scene: bpy.types.Scene) -> tuple[bpy.types.Object, range]:

@@ -1,7 +1,7 @@
 """Build Library in the add-on on a folder of FBX files written by Blender (tests/fbx_rigs.py): the Mixamo-like rig
-(centimetres under a 0.01 scale, skinned mesh), the same with its 0.01 on its own FBX node (which Blender imports
-at a hundredth of its size) and a Z-up generic rig read at their true size and as danced, the file left as it
-was; the samples are cached by content, shared with the command line."""
+(centimetres under a 0.01 scale, skinned mesh) as binary and ASCII FBX, the same with its 0.01 on its own FBX node
+(which Blender imports at a hundredth of its size) and a Z-up generic rig read at their true size and as danced,
+the file left as it was; the samples are cached by content, shared with the command line."""
 
 from __future__ import annotations
 
@@ -34,14 +34,15 @@ def test_build_library_reads_mixamo_like_fbx_at_true_size(scene, addon, own_cach
     rigs = written(tmp_path_factory)
     folder = tmp_path / "downloads"
     folder.mkdir()
-    for name in ("mixamo", "mixamo_node_scaled", "generic"):
+    for name in ("mixamo", "mixamo_node_scaled", "mixamo_ascii", "generic"):
         (folder / f"{name}.fbx").write_bytes((rigs / f"{name}.fbx").read_bytes())
     scene.dancenet.engine, scene.dancenet.library = "library", str(folder)
     counts = _counts()
     assert bpy.ops.dancenet.build_library() == {"FINISHED"}
     assert _counts() == counts  # the imports went, all of them
     library = MotionLibrary.load(library_path(folder))
-    assert library.names == ["generic.fbx", "mixamo.fbx", "mixamo_node_scaled.fbx"] and not library.notes
+    assert library.names == ["generic.fbx", "mixamo.fbx", "mixamo_ascii.fbx", "mixamo_node_scaled.fbx"]
+    assert not library.notes
     assert 1.6 < np.ptp(library.skeleton.rest_positions()[:, 1]) < 1.9
     np.testing.assert_allclose(library.offsets[:BODY_JOINTS], SIZE * DEFAULT_SKELETON.offsets[:BODY_JOINTS],
                                atol=1e-3)
