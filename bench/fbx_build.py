@@ -3,9 +3,10 @@
 Each file is what tests/fbx_rigs.py writes with Blender's module: a `mixamorig:` rig of 65 bones (fingers and the
 `_End` leaves) in centimetres under a 0.01 scale, a skinned mesh of about 10,000 vertices, 10 s of a made-up dance
 at 30 fps. Prints JSON: the cold build of the folder (every file sampled by Blender's module in worker processes,
-then read and analysed) with 1 and with 2 worker processes, seconds per file each, their ratio, and the rebuild of
-the unchanged folder (the built library read back) and a forced one (`--force`: every FBX file's sample read from
-the cache, the clips read and analysed again).
+then read and analysed) with 1 and with 2 worker processes, seconds per file each (wall, and CPU seconds of the
+process and its workers: on a shared machine the wall clock says more about the others), their ratio, the rebuild
+of the unchanged folder (the built library read back) and a forced one (`--force`: every FBX file's sample read
+from the cache, the clips read and analysed again), and the machine's load average.
 
     .venv/bin/python bench/fbx_build.py [--files 6] [--seconds 10] [--vertices 10000]
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -24,14 +26,21 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _build(folder: Path, workers: int, force: bool = False) -> float:
+def _cpu() -> float:
+    """CPU seconds this process and its ended children (the workers) have used."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def _build(folder: Path, workers: int, force: bool = False) -> tuple[float, float]:
+    """(wall seconds, CPU seconds) of a build of `folder`."""
     from dancenet_core.library.build import build_library
 
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), _cpu()
     library, _ = build_library(folder, force=force, workers=workers, report=lambda _line: None)
     seconds = time.perf_counter() - t
     assert not library.notes, library.notes
-    return seconds
+    return seconds, _cpu() - cpu
 
 
 def main(argv: list[str]) -> int:
@@ -52,12 +61,14 @@ def main(argv: list[str]) -> int:
                                                        / args.files, 2), "cpus": os.cpu_count()}
         for workers in (1, 2):
             os.environ["DANCENET_CACHE"] = str(Path(tmp) / f"cache{workers}")
-            cold = _build(folder, workers)
+            cold, cpu = _build(folder, workers)
             out[f"cold_{workers}_worker_s"] = round(cold, 2)
             out[f"per_file_{workers}_worker_s"] = round(cold / args.files, 2)
+            out[f"cpu_per_file_{workers}_worker_s"] = round(cpu / args.files, 2)
         out["ratio_1_over_2_workers"] = round(out["cold_1_worker_s"] / out["cold_2_worker_s"], 2)
-        out["rebuild_s"] = round(_build(folder, 2), 3)
-        out["rebuild_forced_s"] = round(_build(folder, 2, force=True), 2)
+        out["rebuild_s"] = round(_build(folder, 2)[0], 3)
+        out["rebuild_forced_s"] = round(_build(folder, 2, force=True)[0], 2)
+        out["load_average"] = round(os.getloadavg()[0], 1)
     print(json.dumps(out))
     return 0
 

@@ -29,7 +29,7 @@ sys.path.insert(0, str(REPO))
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-from blender_addon import keyframes, rig  # noqa: E402
+from blender_addon import retarget, rig  # noqa: E402
 from dancenet_core.motion import Motion  # noqa: E402
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_NAMES  # noqa: E402
 
@@ -46,7 +46,7 @@ def synthetic_dance(seconds: float, fps: float = 30.0) -> Motion:
     return Motion(rot, root, fps)
 
 
-def bench_insert(arm: bpy.types.Object, tracks: keyframes.PoseTracks, frames: int) -> float:
+def bench_insert(arm: bpy.types.Object, tracks: retarget.PoseTracks, frames: int) -> float:
     """Seconds to keyframe_insert `frames` frames on every bone (values set first, as a script would)."""
     scene = bpy.context.scene
     arm.animation_data_create()
@@ -80,10 +80,10 @@ def main() -> None:
     resampled = motion.resampled(args.fps)
     resample_s = time.perf_counter() - t
     t = time.perf_counter()
-    tracks = keyframes.retarget(arm, resampled, identity)
+    tracks = retarget.retarget(arm, resampled, identity)
     retarget_s = time.perf_counter() - t
     t = time.perf_counter()
-    keyframes.write_action(arm, tracks, "foreach_set", 1)
+    retarget.write_action(arm, tracks, "foreach_set", 1)
     write_s = time.perf_counter() - t
     frames = tracks.num_frames
     keys = frames * (4 * len(tracks.rotations) + 3)

@@ -249,7 +249,7 @@ def _key_takes(target: bpy.types.Object, result: Any, req: DanceRequest, place: 
                frame_start: int) -> list[bpy.types.Action]:
     """Each take keyed onto `target` as an action of its own, named and recorded (its settings, song, bone map and
     figures) so it can be continued or danced again."""
-    from dancenet_core.generate import shape_takes
+    from dancenet_core.shaping.takes import shape_takes
 
     from . import keyframes  # needs scipy (the core's FK): loaded on first use
 

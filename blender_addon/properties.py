@@ -40,16 +40,18 @@ def _style_label(style: str) -> str:
     return style.replace("_", " ").replace("-", " ").title()
 
 
-def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
-    analysis = self.analysis_for(self.current_song(context.scene)) if context is not None else None
+def _engine_styles(props: DanceNetSettings, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    """Auto and the styles the chosen engine dances (the library's: its clips'), with the analysed song's
+    probabilities in their labels."""
+    analysis = props.analysis_for(props.current_song(context.scene)) if context is not None else None
     probs: dict[str, float] = analysis["probabilities"] if analysis else {}
     auto = "Auto"
     if analysis:
         auto = f"Auto ({_style_label(analysis['style'])})"
     items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
     try:
-        if self.engine == "library":  # the styles of the library's clips
-            styles = library.library_styles(library.chosen_library(self, drawn=True))
+        if props.engine == "library":  # the styles of the library's clips
+            styles = library.library_styles(library.chosen_library(props, drawn=True))
         else:
             styles = pipeline.available_styles()
         _styles_problem[:] = []
@@ -61,26 +63,63 @@ def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[t
         if style in probs:
             label = f"{label}  {probs[style]:.0%}"
         items.append((style, label, f"Dance {_style_label(style)}", i))
-    _style_items[:] = items
+    return items
+
+
+def _with_own(items: list[tuple[str, str, str, int]], own: str) -> list[tuple[str, str, str, int]]:
+    """The menu's items and, when the engine offers it no more, the style chosen before (said in its label:
+    Generate then says the engine lacks it)."""
+    if own and own not in {k for k, *_ in items}:
+        items.append((own, f"{_style_label(own)} (not this engine's)", f"Dance {_style_label(own)}", len(items)))
+    return items
+
+
+def _by_name(items: list[tuple[str, str, str, int]], name: str) -> int:
+    """The value of the menu's item `name` (the first item's where none): a dynamic enum is stored by its value,
+    which points at another style once the engine, and so the list, changes; the name is kept instead."""
+    return next((v for k, _l, _d, v in items if k == name), items[0][3])
+
+
+def _styles(self: DanceNetSettings, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    _style_items[:] = _with_own(_engine_styles(self, context), self.style_name)
     return _style_items
+
+
+def _get_style(self: DanceNetSettings) -> int:
+    return _by_name(_styles(self, bpy.context), self.style_name or "auto")
+
+
+def _set_style(self: DanceNetSettings, value: int) -> None:
+    self.style_name = next((k for k, _l, _d, v in _styles(self, bpy.context) if v == value), "auto")
 
 
 _section_style_items: list[tuple[str, str, str, int]] = []
 
 
-def _section_styles(_self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
-    """A section's style: the dance's, or one of the styles the Style menu offers."""
+def _section_styles(self: Any, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
+    """A section's style: the dance's, one of the styles the Style menu offers, or the section's own when the
+    engine offers it no more."""
     props = context.scene.dancenet if context is not None else None
-    styles = [item for item in (_styles(props, context) if props is not None else []) if item[0] != "auto"]
-    _section_style_items[:] = [(AS_DANCE, "As the Dance", "The dance's style", 0),
-                               *((k, label.split("  ")[0], d, i) for i, (k, label, d, _n) in enumerate(styles, 1))]
+    styles = [item for item in (_engine_styles(props, context) if props is not None else []) if item[0] != "auto"]
+    items = [(AS_DANCE, "As the Dance", "The dance's style", 0),
+             *((k, label.split("  ")[0], d, i) for i, (k, label, d, _n) in enumerate(styles, 1))]
+    _section_style_items[:] = _with_own(items, self.style_name)
     return _section_style_items
+
+
+def _get_section_style(self: Any) -> int:
+    return _by_name(_section_styles(self, bpy.context), self.style_name or AS_DANCE)
+
+
+def _set_section_style(self: Any, value: int) -> None:
+    self.style_name = next((k for k, _l, _d, v in _section_styles(self, bpy.context) if v == value), AS_DANCE)
 
 
 class DanceNetSection(bpy.types.PropertyGroup):
     """Settings of one section of the song's form (A1, B1, A2, ...: its name is the item's name)."""
 
-    style: EnumProperty(name="Style", items=_section_styles,
+    style_name: StringProperty(options={"HIDDEN"})  # the section's style as chosen ("": the dance's)
+    style: EnumProperty(name="Style", items=_section_styles, get=_get_section_style, set=_set_section_style,
                         description="Dance this section in another style (it is then danced anew)")
     energy: EnumProperty(name="Energy", default=AS_DANCE, items=[
         (AS_DANCE, "As the Dance", "The dance's energy"),
@@ -156,7 +195,9 @@ class DanceNetSettings(bpy.types.PropertyGroup):
     )
     music_file: StringProperty(name="Song", subtype="FILE_PATH", description="The song to dance to",
                                options={"ANIMATABLE"} | _BLEND_RELATIVE)
-    style: EnumProperty(name="Style", items=_styles, description="Dance style (Auto: chosen from the music)")
+    style_name: StringProperty(options={"HIDDEN"})  # the dance's style as chosen ("": auto)
+    style: EnumProperty(name="Style", items=_styles, get=_get_style, set=_set_style,
+                        description="Dance style (Auto: chosen from the music)")
     use_part: BoolProperty(
         name="Part of the Song", default=False,
         description="Dance only between two timeline frames (a sound strip's trim is always honoured)",

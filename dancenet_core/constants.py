@@ -3,7 +3,7 @@ imports nothing, so the add-on reads them when it registers without loading the 
 
 # The frame rates animators and game engines work in; `--fps` offers these (film, PAL, NTSC, 50/60 Hz).
 FRAME_RATES: tuple[int, ...] = (24, 25, 30, 50, 60)
-# Root motion (rootmotion.py): travelling as danced, in place, or carried by a root bone on the floor.
+# Root motion (shaping/rootmotion.py): travelling as danced, in place, or carried by a root bone on the floor.
 ROOT_MODES: tuple[str, ...] = ("travel", "in-place", "root-bone")
 
 # Sampling temperature (scales sigma within the drawn mixture component), chosen with the output smoothing on the
@@ -16,5 +16,5 @@ MAX_TEMPERATURE = 3.0
 # The shortest part of a song worth dancing (a bar at 60 BPM is 4 s; one second still shows a move).
 MIN_PART_S = 1.0
 # A time-warp plays every frame within this share of the speed it was danced or captured at: the library engine's
-# figures laid on the song's beats, and DanceNet's beat lock (`beatlock.py`).
+# figures laid on the song's beats, and DanceNet's beat lock (`shaping/beatlock.py`).
 WARP_RANGE = 0.15

@@ -1,9 +1,12 @@
 """Song -> dances: the one entry point the command line, the Blender add-on and batch mode share.
 
 `generate_dance(request)` checks the request (and lets its engine load what it needs) before a second of music
-analysis, analyses the music (cached), and hands the analysis to the engine the request names (`engines/`);
-`shape_takes` turns the takes into what is written or keyed (the frame rate, the kept frames of a continued
-dance, the root motion), for the command line and the add-on alike.
+analysis, analyses the music (cached) and reads the song's form; the engine the request names (`engines/`) dances
+the part, sections with settings of their own are danced anew by it, and the steps of `shaping/` shape the takes
+in their one order (its docstring): the song's returning sections danced again, the foot contacts and the figure
+list following (`shaping.takes.with_repeats`). `shaping.takes.shape_takes` then turns the takes into what is
+written or keyed (the frame rate, the kept frames of a continued dance, the root motion), for the command line
+and the add-on alike.
 """
 
 from __future__ import annotations
@@ -16,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from .constants import MIN_PART_S
-from .continuation import DIFFERENCES, keep_original
 from .engines import Engine, Takes, get_engine
 from .environment import one_blas_thread
 from .errors import DanceNetError, GenerationCancelled
@@ -25,13 +27,15 @@ from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
-from .returns import JOIN_BLEND_S, carry_on, dance_returns, figures_as_danced
-from .rootmotion import apply_mode
+from .shaping.continuation import DIFFERENCES
+from .shaping.figures import danced_figures, spliced
+from .shaping.repeats import JOIN_BLEND_S, carry_on
+from .shaping.takes import with_repeats
 
 
 @dataclass
 class GenerationResult:
-    motions: list[Motion]  # per take, at the engine's frame rate, as danced (see `shape_takes`)
+    motions: list[Motion]  # per take, at the engine's frame rate, as danced (see `shaping.takes.shape_takes`)
     beat_times: np.ndarray
     downbeat_times: np.ndarray
     tempo_bpm: float
@@ -81,13 +85,13 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
     form = song_form(analysis)
     for o in request.sections:
         section_named(form, o.section, (start, end))  # a section the song lacks, said before the dancing
-    if request.redo_section is not None:
+    if request.redo_section is not None:  # one section of a kept dance danced anew
         takes = _redo_section(engine, form, analysis, request, (start, end), report, cancelled)
-    else:
+    else:  # the engine's dance, its sections of their own danced anew, then the repeats of the song's sections
         takes = engine.dance(request, analysis, report, cancelled)
         takes = _with_sections(engine, takes, form, analysis, request, (start, end), report, cancelled)
         t = time.perf_counter()
-        takes = _with_returns(takes, form, start, request)
+        _with_repeats(takes, form, start, request)
         takes.timings["returns_s"] = time.perf_counter() - t
     report("done", 1.0)
 
@@ -141,6 +145,10 @@ def _redo_section(engine: Engine, form: SongForm, analysis: MusicAnalysis, reque
     section = section_named(form, request.redo_section, part)
     takes = _section_anew(engine, analysis, request, request.continue_from, section, part, report, cancelled)
     takes.contacts = []  # the kept dance has none
+    for details in takes.details:  # a library take lists the section's figures (the kept dance's are not known)
+        if "danced_figures" in details:
+            rows = spliced([], details["danced_figures"], section.start_s, section.end_s)
+            details["danced_figures"] = danced_figures(rows, [], section.end_s, takes.motions[0].fps)
     return takes
 
 
@@ -155,44 +163,24 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
                           seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
             new = _section_anew(engine, analysis, sub, motion, section, part, report, cancelled)
             takes.motions[k] = new.motions[0]
+            if k < len(takes.details) and new.details and "danced_figures" in new.details[0]:
+                takes.details[k]["danced_figures"] = spliced(takes.details[k]["danced_figures"],
+                                                             new.details[0]["danced_figures"], section.start_s,
+                                                             section.end_s)
             if k < len(takes.contacts) and new.contacts:
                 done = len(new.contacts[0])
                 takes.contacts[k] = np.concatenate([new.contacts[0], takes.contacts[k][done:]])
     return takes
 
 
-def _with_returns(takes: Takes, form: SongForm, start_s: float, request: DanceRequest) -> Takes:
-    """The takes with the song's returning sections danced as `request.returns` says, or as a section's own
-    settings say (`returns.dance_returns`; a section danced with a style or energy of its own is left as it is),
-    their foot contacts following the frames."""
-    keep = request.at_s if request.continue_from is not None else 0.0
-    modes = {o.section: "anew" if o.redances else o.returns for o in request.sections if o.redances or o.returns}
-    motions, contacts = [], []
+def _with_repeats(takes: Takes, form: SongForm, start_s: float, request: DanceRequest) -> None:
+    """Each take with the song's returning sections danced again (`shaping.takes.with_repeats`), in place."""
     for k, motion in enumerate(takes.motions):
-        out, frame_map = dance_returns(motion, form, start_s, request.returns, keep, modes)
-        motions.append(out)
-        if k < len(takes.details) and "danced_figures" in takes.details[k]:
-            takes.details[k]["danced_figures"] = figures_as_danced(takes.details[k]["danced_figures"], frame_map,
-                                                                   motion.fps, start_s)
-        if k < len(takes.contacts):
-            contacts.append(takes.contacts[k][np.round(frame_map).astype(int)])
-    takes.motions, takes.contacts = motions, contacts
-    return takes
-
-
-def shape_takes(motions: list[Motion], request: DanceRequest) -> list[Motion]:
-    """The takes as they are written or keyed: at `request.fps` (slerp-resampled; None keeps the engine's
-    rate, or a continued dance's own), a continued dance's kept frames exactly as they were (at its rate, not
-    resampled ones), and the root motion applied (in place; a root bone is a layout of the dance as danced,
-    made by the BVH writer or the add-on)."""
-    kept = request.continue_from
-    if kept is None:
-        return [shape_take(m, request.fps, request.root_motion) for m in motions]
-    join = round(request.at_s * motions[0].fps) / motions[0].fps  # on the engine's frame grid
-    kept = kept.resampled(request.fps or kept.fps)
-    return [shape_take(keep_original(kept, m, join), None, request.root_motion) for m in motions]
-
-
-def shape_take(motion: Motion, fps: float | None, root_motion: str) -> Motion:
-    """One take at `fps` (None: at its own rate) with its root motion applied (see `shape_takes`)."""
-    return apply_mode(motion if fps is None else motion.resampled(fps), root_motion)
+        details = takes.details[k] if k < len(takes.details) else {}
+        contacts = takes.contacts[k] if k < len(takes.contacts) else None
+        takes.motions[k], contacts, figures = with_repeats(motion, contacts, details.get("danced_figures"), form,
+                                                           start_s, request)
+        if contacts is not None:
+            takes.contacts[k] = contacts
+        if figures is not None:
+            details["danced_figures"] = figures

@@ -1,6 +1,6 @@
 """Another rig's clip on our 55-joint skeleton by a joint-name map, without a fit: the pieces of retargeting that
-need no torch (a motion library build reads CMU clips with them in Blender; `data/retarget.py` adds the position
-fit that the training data uses).
+need no torch (a motion library build reads every clip with them, in Blender too: `armature_pose`;
+`data/retarget.py` adds the position fit that the training data's CMU clips get).
 
 A `JointMap` says which source joint each of our joints is; everything else (fingers, jaw, eyes) stays at rest.
 1. The source's world pose (`source_pose`), turned so that its up axis is our +Y (found from the data: the head
@@ -26,7 +26,7 @@ from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
 from .rigmap import load_shipped
-from .rootmotion import UNITS
+from .shaping.rootmotion import UNITS
 from .skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, EndSite, Skeleton
 
 
@@ -358,7 +358,7 @@ def rotation_part(m: np.ndarray) -> np.ndarray:
 def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: float, name: str) -> SourcePose:
     """A rig's clip as sampled in Blender, on our terms: `joints` our joints the rig has bones for, `rest`
     [K, 4, 4] each one's bone's world rest matrix and `pose` [T, K, 4, 4] its world matrix per frame (Blender's
-    bone convention: the head at the translation, the Y axis along the bone; metres, the object's scale included),
+    bone convention: the head at the translation, the Y axis along the bone; the object's scale included),
     at `fps`. Any up axis and facing (read from the rest pose: the spine is up, the hips say left), any rest pose:
     our joint's world rotation is the bone's turn from its rest, then our T-pose bone turned onto the rig's rest
     bone (`rest_turns`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose. Lengths are

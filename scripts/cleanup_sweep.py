@@ -21,8 +21,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from dancenet_core import footlock  # noqa: E402
-from dancenet_core.beatlock import lock_to_beats  # noqa: E402
 from dancenet_core.environment import default_data_dir  # noqa: E402
 from dancenet_core.evaluation import test_split  # noqa: E402
 from dancenet_core.evaluation.comparison import DanceSet, dance_row, markdown, measure, reference_features  # noqa: E402
@@ -30,6 +28,8 @@ from dancenet_core.evaluation.motion_style import MotionStyleModel  # noqa: E402
 from dancenet_core.evaluation.test_split import split_with_beats  # noqa: E402
 from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle  # noqa: E402
 from dancenet_core.representation import decode  # noqa: E402
+from dancenet_core.shaping import footlock  # noqa: E402
+from dancenet_core.shaping.beatlock import lock_to_beats  # noqa: E402
 
 
 def main() -> None:

@@ -6,7 +6,7 @@ settings where five songs leave a choice to one song's luck; never the test song
 
 Rows, the same dances rewritten after they are danced:
 - danced anew: the dances as they are;
-- returns danced again: `returns.dance_returns` (the default, `--returns repeat`);
+- returns danced again: `repeats.dance_returns` (the default, `--returns repeat`);
 - joins alone: every copy's joins and placement, its frames the same bars of another take of the same song
   (takes never measured themselves): nothing copied from elsewhere in the song;
 - returns from another take: the copies as the default makes them, their frames read from another take of the
@@ -40,7 +40,6 @@ SEED = 0  # the songs' order before they are dealt into folds
 
 
 def main() -> int:
-    from dancenet_core import returns
     from dancenet_core.data.dance_with_melody import read_manifest
     from dancenet_core.environment import default_data_dir
     from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features, segments
@@ -54,6 +53,7 @@ def main() -> int:
     from dancenet_core.music.features import analyze_music
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.representation import decode
+    from dancenet_core.shaping import repeats
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--takes", type=int, default=4)
@@ -81,19 +81,19 @@ def main() -> int:
     beats = {s: analyze_music(seqs[s].audio).beat_times - seqs[s].music_offset_s for s in songs}
     forms = song_forms([pairs[s] for s in songs], data)
     real = {s: decode(pairs[s].motion, fps, skeleton).positions() for s in songs}
-    sample, bar_map = returns._sample, returns._bar_map
+    sample, bar_map = repeats._sample, repeats._bar_map
 
     def rewritten(motion, donor, seq: str, how: str):
         if how == "anew":
             return motion
         try:
             if how != "repeat":
-                returns._sample = lambda _motion, frames: sample(donor, frames)
+                repeats._sample = lambda _motion, frames: sample(donor, frames)
             if how == "joins alone":
-                returns._bar_map = lambda frames, _target, _source: frames
-            return returns.dance_returns(motion, *forms[seq], "repeat")[0]
+                repeats._bar_map = lambda frames, _target, _source: frames
+            return repeats.dance_returns(motion, *forms[seq], "repeat")[0]
         finally:
-            returns._sample, returns._bar_map = sample, bar_map
+            repeats._sample, repeats._bar_map = sample, bar_map
 
     hows = ("anew", "repeat", "joins alone", "returns from another take")
     per_fold: dict[str, list[dict]] = {how: [] for how in hows}

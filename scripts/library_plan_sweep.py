@@ -1,6 +1,6 @@
 """The library plan's settings, measured as `dancenet evaluate` measures (the users' library: the training dances but
 the measured ones, as BVH without music), each danced anew and with the song's returns danced again (the default,
-`returns.dance_returns`), the same dances rewritten: FID_k, FID_g, Beat Align Score, style consistency, return
+`shaping.repeats.dance_returns`), the same dances rewritten: FID_k, FID_g, Beat Align Score, style consistency, return
 likeness and the plan's cuts. Settings are chosen on the validation songs (training songs the models leave out);
 `--part test` measures chosen settings once on the test songs, against the shipped plan in the same run.
 

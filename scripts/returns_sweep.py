@@ -5,7 +5,7 @@ without music) dance `--takes` takes of each song, and each row rewrites the sam
 `evaluate` does:
 
 - danced anew: the dances as they are;
-- returns danced again: `returns.dance_returns` (the default, `--returns repeat`);
+- returns danced again: `repeats.dance_returns` (the default, `--returns repeat`);
 - joins alone: every copy's joins and placement, its frames the same bars of another take of the same song (takes
   beyond the measured ones, never measured themselves);
 - returns from another take: the copy as the default makes it (bar against bar, joins, placement, the real-time
@@ -38,7 +38,6 @@ COLUMNS = ("fid_k", "fid_g", "div_k", "beat_align_score", "bas_own_ratio", "styl
 
 
 def main() -> int:
-    from dancenet_core import returns
     from dancenet_core.constants import DEFAULT_TEMPERATURE
     from dancenet_core.environment import default_data_dir
     from dancenet_core.evaluation.comparison import DanceSet, measure, reference_features
@@ -48,6 +47,7 @@ def main() -> int:
     from dancenet_core.evaluation.test_split import generate_for_pair, split_with_beats
     from dancenet_core.nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
     from dancenet_core.representation import decode
+    from dancenet_core.shaping import repeats
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--takes", type=int, default=4)
@@ -67,7 +67,7 @@ def main() -> int:
     forms = song_forms(val, data)
     for p in val:
         form, start = forms[p.seq]
-        copies = returns._copies(form, "repeat", {})
+        copies = repeats._copies(form, "repeat", {})
         end = start + len(p.motion) / fps  # the dance covers this span of the song; copies read and write within it
         danced = [(a, e) for a, e, s, _h in copies if form.bar_starts[s] >= start]
         print(json.dumps({"song": p.seq, "sections": " ".join(f"{s.name}:{s.bars}" for s in form.sections),
@@ -85,7 +85,7 @@ def main() -> int:
     styles = [p.style for p in val for _ in range(takes)]
     song_beats = [beats[p.seq] for p in val for _ in range(takes)]
     measured = [i * lend * takes + k for i in range(len(val)) for k in range(takes)]
-    sample, bar_map, copies = returns._sample, returns._bar_map, returns._copies
+    sample, bar_map, copies = repeats._sample, repeats._bar_map, repeats._copies
 
     def off(form, mode, section_modes):
         return [(a, e, s + 2 if s + 2 + e - a <= a else max(0, s - 2), h) for a, e, s, h in copies(form, mode,
@@ -97,14 +97,14 @@ def main() -> int:
         form, start = forms[seq]
         try:
             if how == "copied 2 bars off":
-                returns._copies = off
+                repeats._copies = off
             elif how != "repeat":
-                returns._sample = lambda _motion, frames: sample(donor, frames)
+                repeats._sample = lambda _motion, frames: sample(donor, frames)
             if how == "joins alone":
-                returns._bar_map = lambda frames, _target, _source: frames
-            return returns.dance_returns(motion, form, start, "repeat")[0]
+                repeats._bar_map = lambda frames, _target, _source: frames
+            return repeats.dance_returns(motion, form, start, "repeat")[0]
         finally:
-            returns._sample, returns._bar_map, returns._copies = sample, bar_map, copies
+            repeats._sample, repeats._bar_map, repeats._copies = sample, bar_map, copies
 
     out = {}
     for engine, made in dances.items():

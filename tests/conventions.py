@@ -94,6 +94,8 @@ CONVENTIONS: dict[str, Convention] = {
     "character_creator": Convention(shipped("CC"), root="CC_Base_BoneRoot", between={"head": "CC_Base_NeckTwist02"},
                                     a_pose_deg=45.0, unit=0.01, t_pose=True),
     "rokoko": Convention(shipped("ROKOKO"), between={"spine3": "Spine3"}, ends={"head": "HeadEnd"}, fps=120.0),
+    "xsens": Convention(shipped("XSENS"), between={"spine3": "Chest3"}, unit=0.01, fps=60.0),
+    "motive": Convention(shipped("MOTIVE"), fps=120.0, order="YXZ"),
     "daz": Convention(shipped("DAZ"), between={"left_knee": "lThighTwist", "right_knee": "rThighTwist",
                       "left_elbow": "lShldrTwist", "right_elbow": "rShldrTwist"}, a_pose_deg=45.0, unit=0.01),
     "mmd": Convention(MMD, parents={MMD["spine1"]: "センター"}, root="センター", a_pose_deg=35.0, unit=INCH),

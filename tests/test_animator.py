@@ -99,7 +99,7 @@ def test_bad_parts_are_one_line_errors(song: Path, tmp_path: Path, capsys, args,
 
 
 def test_root_motion_modes_carry_the_same_dance(song: Path, tmp_path: Path) -> None:
-    from dancenet_core.rootmotion import read_dance_bvh
+    from dancenet_core.shaping.rootmotion import read_dance_bvh
 
     travel = generate(song, tmp_path / "travel", "--fps", "30")
     path = np.linalg.norm(np.ptp(travel.root_positions[:, [0, 2]], axis=0))

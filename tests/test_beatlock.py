@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dancenet_core.beatlock import beat_warp, lock_to_beats
 from dancenet_core.beats import motion_beats
 from dancenet_core.constants import WARP_RANGE
 from dancenet_core.evaluation.metrics import beat_align_score
 from dancenet_core.motion import Motion
 from dancenet_core.representation import decode, encode, start_pose
+from dancenet_core.shaping.beatlock import beat_warp, lock_to_beats
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX
 
 FPS = 25.0

@@ -482,7 +482,7 @@ def _dance(frames: int = 50) -> Motion:
 def test_a_dance_in_any_unit_reads_back_in_metres(tmp_path: Path, unit: str, scale: float) -> None:
     """The unit comes from the skeleton's size, so a dance saved in centimetres (offsets and root
     path x100) continues as the same dance, not one 100 times too large."""
-    from dancenet_core.rootmotion import read_dance_bvh
+    from dancenet_core.shaping.rootmotion import read_dance_bvh
 
     motion = _dance()
     write_bvh(tmp_path / "d.bvh", motion, scale=scale)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dancenet_core.floor import contact_floor, floor_shift, toe_ends
-from dancenet_core.footlock import GROUND_M, STILL_MPS, contact_runs, hold_offsets, lock_feet, planted_feet
 from dancenet_core.motion import Motion
+from dancenet_core.shaping.floor import contact_floor, floor_shift, toe_ends
+from dancenet_core.shaping.footlock import GROUND_M, STILL_MPS, contact_runs, hold_offsets, lock_feet, planted_feet
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0

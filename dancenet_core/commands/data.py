@@ -30,8 +30,8 @@ from ..environment import default_data_dir
 from ..evaluation.alignment import alignment_table, report
 from ..evaluation.metrics import floor_reach
 from ..evaluation.test_split import split_with_beats
-from ..floor import toe_ends
 from ..representation import decode
+from ..shaping.floor import toe_ends
 from ..skeleton import Skeleton
 
 

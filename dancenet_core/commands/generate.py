@@ -15,13 +15,14 @@ from tqdm import tqdm
 from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
 from ..errors import DanceNetError
-from ..generate import GenerationResult, generate_dance, shape_takes
+from ..generate import GenerationResult, generate_dance
 from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..progress import StageProgress
 from ..render import render_motion
 from ..request import DanceRequest, add_options, options_from
-from ..rootmotion import read_dance_bvh, write_root_bone_bvh
 from ..runtime.weights import DEFAULT_RUNTIME, META
+from ..shaping.rootmotion import read_dance_bvh, write_root_bone_bvh
+from ..shaping.takes import shape_takes
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -27,12 +27,12 @@ from tqdm import tqdm
 from ..atomic import atomic_open
 from ..bvh import read_bvh
 from ..environment import cache_root
-from ..floor import floor_offset, floor_track
 from ..jointmap import CMU, SourcePose, source_pose
 from ..motion import Motion
 from ..music.features import FPS as MUSIC_FPS
 from ..music.features import analyze_music, music_at_frames
 from ..representation import encode
+from ..shaping.floor import floor_offset, floor_track
 from ..skeleton import BODY_JOINTS, Skeleton
 from .cmu_dance import Clip
 from .dance_with_melody import P, Recording, load_positions, read_manifest

@@ -35,7 +35,7 @@ ENGINES: dict[str, str] = {
 @dataclass
 class Takes:
     """What an engine made for the part of the song `request.part` gives: one Motion per take, travelling (as
-    danced), at the engine's own frame rate, starting at the part's start; `generate.shape_takes` turns them
+    danced), at the engine's own frame rate, starting at the part's start; `shaping.takes.shape_takes` turns them
     into what is written or keyed."""
 
     motions: list[Motion]

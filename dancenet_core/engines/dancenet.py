@@ -12,12 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..beatlock import lock_to_beats
 from ..constants import MIN_PART_S
-from ..continuation import join_kept
 from ..errors import DanceNetError, GenerationCancelled
-from ..floor import floor_shift
-from ..footlock import lock_feet, planted_feet
 from ..motion import Motion
 from ..music.features import FEATURE_SPEC, FeatureSpec, MusicAnalysis, music_at_frames
 from ..progress import Progress, StageProgress
@@ -25,6 +21,10 @@ from ..representation import FeatureLayout, decode, encode
 from ..request import DanceRequest
 from ..runtime.sampler import CachedSampler, Sampling, music_conditioning
 from ..runtime.weights import DEFAULT_RUNTIME, RuntimeBundle, RuntimeFootFixer
+from ..shaping.beatlock import lock_to_beats
+from ..shaping.continuation import join_kept
+from ..shaping.floor import floor_shift
+from ..shaping.footlock import lock_feet, planted_feet
 from . import Takes
 from .styles import check_style, choose_style, is_checkpoint
 

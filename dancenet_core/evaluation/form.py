@@ -154,6 +154,6 @@ def mean_likeness(dances: list[Motion], positions: list[np.ndarray], songs: list
 def danced_again(dances: list[Motion], songs: list[str], forms: dict[str, tuple[SongForm, float]],
                  mode: str = "repeat") -> list[Motion]:
     """The dances with their songs' returns danced again, as `generate` dances them by default."""
-    from ..returns import dance_returns
+    from ..shaping.repeats import dance_returns
 
     return [dance_returns(m, *forms[seq], mode)[0] for m, seq in zip(dances, songs, strict=True)]

@@ -36,11 +36,11 @@ import numpy as np
 
 from ..environment import default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, GenerationCancelled, first_line
-from ..floor import floor_track
 from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
 from ..rigmap import BoneMap, humanoid_joints, load_file
+from ..shaping.floor import floor_track
 from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
 from .bvhclip import bvh_rig

@@ -54,8 +54,8 @@ def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
     cols = [mapped[j] for j in joints]
     rest_rot = min_rotation(np.array([0.0, 1.0, 0.0]), tails[cols] - heads[cols])
     world_p, world_r = data._fk()
+    first = _first_danced(data, world_p[:, cols], world_r, heads[cols], cols, joints)
     world_p, world_r = _upright(world_p[:, cols], world_r[:, cols], heads[cols], joints)
-    first = _first_danced(data, world_p, heads[cols], cols, joints)
     rest = np.zeros((len(cols), 4, 4))
     rest[:, :3, :3], rest[:, :3, 3], rest[:, 3, 3] = rest_rot, heads[cols], 1.0
     pose = np.zeros((data.num_frames - first, len(cols), 4, 4))
@@ -132,11 +132,15 @@ def _upright(positions: np.ndarray, rotations: np.ndarray, rest: np.ndarray,
     return positions @ m.T, m @ rotations
 
 
-def _first_danced(data: BvhData, positions: np.ndarray, rest: np.ndarray, cols: list[int],
+def _first_danced(data: BvhData, positions: np.ndarray, world: np.ndarray, rest: np.ndarray, cols: list[int],
                   joints: list[int]) -> int:
     """The first frame of the dance: past the rest-pose frames an exporter put first, when a jump into the dance
-    follows them (a dance that starts from its rest pose and moves off smoothly keeps them)."""
-    local = np.degrees(np.linalg.norm(data.local_rotations()[:, cols[1:]], axis=-1)).max(axis=1)
+    follows them (a dance that starts from its rest pose and moves off smoothly keeps them). `world`: every joint's
+    world rotation [T, J, 3, 3]; `positions`: the mapped joints' [T, K, 3]."""
+    kids = [c for c in cols[1:] if data.parents[c] >= 0]
+    local = np.swapaxes(world[:, [data.parents[c] for c in kids]], -1, -2) @ world[:, kids]
+    cos = np.clip((np.trace(local, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    local = np.degrees(np.arccos(cos)).max(axis=1)
     at_rest = int(np.argmin(local < REST_DEG)) if not (local < REST_DEG).all() else data.num_frames
     if at_rest == 0 or at_rest == data.num_frames:
         return 0

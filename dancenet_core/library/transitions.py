@@ -17,9 +17,10 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
-from ..continuation import _fade
 from ..motion import Motion
 from ..representation import foot_contacts, heading
+from ..shaping.continuation import _fade
+from ..shaping.placing import sample_frames, turned
 from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
 
@@ -79,30 +80,10 @@ def beat_frames(library: MotionLibrary, position: np.ndarray) -> np.ndarray:
 
 
 def _sample(library: MotionLibrary, pos: np.ndarray, clip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotations [T, J, 3] and root positions [T, 3] at fractional library frames `pos` (within each frame's
-    clip `clip`): normalised linear interpolation of quaternions between neighbouring frames."""
-    lo_f, hi_f = library.clip_starts[clip], library.clip_starts[clip + 1] - 1
-    pos = np.clip(pos, lo_f, hi_f)
-    i0 = np.floor(pos).astype(np.int64)
-    i1 = np.minimum(i0 + 1, hi_f)
-    a = (pos - i0)[:, None]
-    nj = library.rotations.shape[1]
-    q0 = Rotation.from_rotvec(library.rotations[i0].reshape(-1, 3)).as_quat().reshape(-1, nj, 4)
-    q1 = Rotation.from_rotvec(library.rotations[i1].reshape(-1, 3)).as_quat().reshape(-1, nj, 4)
-    q1 *= np.sign((q0 * q1).sum(-1, keepdims=True) + 1e-12)
-    q = q0 * (1 - a[..., None]) + q1 * a[..., None]
-    rot = Rotation.from_quat(q.reshape(-1, 4)).as_rotvec().reshape(-1, nj, 3)
-    root = library.root_positions[i0] * (1 - a) + library.root_positions[i1] * a
-    return rot, root
-
-
-def _place(rot: np.ndarray, root: np.ndarray, turn: float, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Frames turned by `turn` about +Y and shifted by `shift` on the floor (root rotation and position)."""
-    r = Rotation.from_euler("y", turn)
-    rot = rot.copy()
-    rot[:, 0] = (r * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
-    root = r.apply(root) + np.array([shift[0], 0.0, shift[1]])
-    return rot, root
+    """Rotations [T, J, 3] and root positions [T, 3] at fractional library frames `pos`, each within its clip
+    `clip` (held at the clip's ends): `placing.sample_frames`."""
+    first, last = library.clip_starts[clip], library.clip_starts[clip + 1] - 1
+    return sample_frames(library.rotations, library.root_positions, np.clip(pos, first, last), first, last)
 
 
 @dataclass
@@ -174,8 +155,8 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
             prev_clip = np.array([clip[a - 1]])
             step = pos[a - 1] - pos[a - 2] if a >= 2 else 1.0
             nrot, nroot = _sample(library, np.array([pos[a - 1] + step]), prev_clip)
-            turn, shift = _follow(*_place(nrot, nroot, turn, shift), rot[a], root[a])
-        placed_rot[a:b], placed_root[a:b] = _place(rot[a:b], root[a:b], turn, shift)
+            turn, shift = _follow(*turned(nrot, nroot, turn, shift), rot[a], root[a])
+        placed_rot[a:b], placed_root[a:b] = turned(rot[a:b], root[a:b], turn, shift)
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
         contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
         own_steps[a : b - 1] = np.linalg.norm(np.diff(source.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
@@ -262,7 +243,7 @@ def _inertialise(library: MotionLibrary, rot: np.ndarray, root: np.ndarray, old_
     frames it took."""
     step = pos[a + 1] - pos[a] if a + 1 < b else 1.0
     lead_rot, lead_root = _sample(library, pos[a] - step * np.array([2.0, 1.0]), np.repeat(clip[a], 2))
-    lead_rot, lead_root = _place(lead_rot, lead_root, turn, shift)
+    lead_rot, lead_root = turned(lead_rot, lead_root, turn, shift)
     nj = rot.shape[1]
     rot_diff = (Rotation.from_rotvec(old_rot.reshape(-1, 3))
                 * Rotation.from_rotvec(lead_rot.reshape(-1, 3)).inv()).as_rotvec().reshape(2, nj, 3)

@@ -16,8 +16,8 @@ milliseconds once a song is analysed:
    diagonal), when that match passes `RETURN_SIMILARITY`.
 4. Sections. Runs of phrases heard for the first time, and runs that repeat consecutive earlier music, cut
    wherever a repeat's source begins or ends (so that a return of A B shows as A then B); a repeat takes the
-   label of the section it repeats, new music the next letter, and music played twice at once stays one
-   section. A song too short for two sections, or with too few downbeats, is one section.
+   label of the section it repeats, new music the next label (A ... Z, AA, AB, ...), and music played twice at
+   once stays one section. A song too short for two sections, or with too few downbeats, is one section.
 
 Hand-written in numpy rather than through librosa's segmentation: the analysis already has the bars, and the
 few matrix operations on a few hundred bars take under 10 ms, with no new dependency for the add-on.
@@ -45,7 +45,7 @@ RETURN_SIMILARITY = 0.6
 class Section:
     """A stretch of the song from one downbeat to another, with the label it shares with its returns."""
 
-    label: str  # "A", "B", ...
+    label: str  # "A", "B", ... "Z", "AA", ... (`section_label`)
     occurrence: int  # 1 for the first time the label is heard, 2 for its first return, ...
     start_s: float
     end_s: float
@@ -82,7 +82,8 @@ class SongForm:
 
     @property
     def labels(self) -> str:
-        return "".join(s.label for s in self.sections)
+        """The sections' labels in order: "ABACAB", spaced ("A B ... AA B") where some label has two letters."""
+        return ("" if all(len(s.label) == 1 for s in self.sections) else " ").join(s.label for s in self.sections)
 
     def to_dict(self) -> dict:
         return {"labels": self.labels, "sections": [s.to_dict() for s in self.sections]}
@@ -163,6 +164,17 @@ def song_form(analysis: MusicAnalysis) -> SongForm:
     return SongForm(edges, tuple(Phrase(*p) for p in phrases), _sections(phrases, edges))
 
 
+def section_label(k: int) -> str:
+    """The label of the k-th music heard (from 0): A ... Z, then AA, AB, ... as spreadsheet columns go on, so
+    no two musics share one however many a song has."""
+    label = ""
+    k += 1
+    while k:
+        k, r = divmod(k - 1, 26)
+        label = string.ascii_uppercase[r] + label
+    return label
+
+
 def _sections(phrases: list[tuple[int, int | None, float]], edges: np.ndarray) -> tuple[Section, ...]:
     """Sections from the phrases: runs of music heard for the first time and runs that repeat consecutive
     earlier music, cut wherever a repeat's source begins or ends (so that a return of A B shows as A then B),
@@ -192,7 +204,7 @@ def _sections(phrases: list[tuple[int, int | None, float]], edges: np.ndarray) -
     sections: list[Section] = []
     for first, end, source, m in pieces:
         if source is None:
-            label, match = string.ascii_uppercase[len({s.label for s in sections}) % 26], 1.0
+            label, match = section_label(len({s.label for s in sections})), 1.0
         else:
             label, match = next(s.label for s in reversed(sections) if s.first_bar <= source), m
         if sections and (sections[-1].label == label or end - first < MIN_SECTION_BARS // 2):

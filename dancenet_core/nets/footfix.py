@@ -20,9 +20,9 @@ from torch import nn
 from ..checkpoint import load_weights, save_weights
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
-from ..floor import floor_lift
 from ..representation import FeatureLayout, Normalizer
 from ..runtime.weights import FootChannels
+from ..shaping.floor import floor_lift
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .kinematics_torch import rotvec_to_matrix_torch
 

@@ -9,6 +9,7 @@ by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import sys
@@ -26,7 +27,8 @@ MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
     "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
     "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "MMD": "mmd.json",
-    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "CMU": "cmu.json", "GENERIC": "generic.json",
+    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "XSENS": "xsens.json", "MOTIVE": "motive.json",
+    "CMU": "cmu.json", "GENERIC": "generic.json",
 }  # fmt: skip
 
 # Joints a bone map must name (and the rig must have) for a dance to read as that dance.
@@ -38,7 +40,7 @@ REQUIRED_JOINTS: tuple[str, ...] = (
 
 # The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
 # count of spine bones; the dance's turn of those a rig lacks is spread over those it has (the add-on's
-# keyframes.retarget; `jointmap.armature_pose` when a clip is read).
+# retarget.retarget; `jointmap.armature_pose` when a clip is read).
 SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
 
 
@@ -49,6 +51,7 @@ class BoneMap:
     by_shape: frozenset[str] = frozenset()  # joints Auto found by the skeleton's shape, not by a name
 
 
+@functools.lru_cache(maxsize=65536)  # Auto compares every bone's name with every map's, for every clip of a library
 def name_key(name: str) -> tuple[str, str]:
     """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
     case, width and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh"), and

@@ -19,9 +19,9 @@ from scipy.special import softmax
 from ..atomic import atomic_open
 from ..environment import WEIGHTS_DIR
 from ..errors import DanceNetError, first_line
-from ..floor import floor_lift
 from ..music.style import StyleClassifier, weights_inputs
 from ..representation import FeatureLayout, Normalizer
+from ..shaping.floor import floor_lift
 from ..skeleton import LOWER_BODY, TOE_ENDS, Skeleton
 from .config import DanceNetConfig
 from .numpy_nets import NumpyDanceNet, NumpyFootNet, NumpyStyleNet, toe_heights

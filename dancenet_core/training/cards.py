@@ -17,7 +17,6 @@ from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
-from ..footlock import GROUND_M, STILL_MPS
 from ..music.features import FEATURE_VERSION
 from ..music.style import (
     BASELINE_WEIGHTS,
@@ -31,6 +30,7 @@ from ..music.style import HOP_S as STYLE_HOP_S
 from ..music.style import N_INPUTS as STYLE_INPUTS
 from ..nets.bundle import DanceNetBundle
 from ..nets.style_torch import StyleModel
+from ..shaping.footlock import GROUND_M, STILL_MPS
 from .motion_style import AUG_TEMPO as MOTION_AUG_TEMPO
 from .motion_style import Dance, load_dances
 from .style import AUG_CHROMA_DROP, AUG_GAIN, AUG_NOISE, VALIDATION, VALIDATION_METER_TEMPO, VALIDATION_WITH_TANGO
@@ -462,10 +462,10 @@ def _foot_sections(footfix_info: dict | None) -> list[str]:
         "## Beat lock",
         "Each dance is time-warped, ahead of the foot clean-up, so that its kinematic beats (the Beat Align Score's) "
         f"land on the song's beats, no frame more than {WARP_RANGE:.0%} faster or slower than sampled "
-        "(`beatlock.py`; on by default, `--no-beat-lock` or the panel's Beat Lock off). The test metrics above are "
-        "measured with it, as generation dances, and without it in their last column. It aims at the tracked beats "
-        "that the Beat Align Score is measured against (a user's song gives them too), so the score measures the "
-        "retiming, not the model.",
+        "(`shaping/beatlock.py`; on by default, `--no-beat-lock` or the panel's Beat Lock off). The test metrics "
+        "above are measured with it, as generation dances, and without it in their last column. It aims at the "
+        "tracked beats that the Beat Align Score is measured against (a user's song gives them too), so the score "
+        "measures the retiming, not the model.",
     ]
     if footfix_info:
         lines += [

@@ -31,3 +31,12 @@ def scene(addon, monkeypatch):
 @pytest.fixture
 def song(tmp_path) -> Path:
     return write_song(tmp_path / "Test Song.wav", seconds=2.0)
+
+
+@pytest.fixture
+def real_scene(addon, tmp_path, monkeypatch):
+    """An empty 24-fps scene and the real generate_dance (the shipped model), the cache in tmp_path."""
+    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.render.fps = 24
+    return bpy.context.scene

@@ -193,3 +193,30 @@ def test_a_generation_stops_the_warm_ups_compile_while_it_runs(scene, addon, son
         assert _keys() == alone and alone
     finally:
         warmup._finished(compiling, lambda: True)
+
+
+def test_a_style_stays_itself_when_the_engine_and_its_styles_change(scene, addon, song, monkeypatch):
+    """The Style menus (the dance's, a section's) list the engine's styles: a style chosen with one engine is the
+    same style (or, where the other engine has none of it, said so) when the engine changes, never its
+    neighbour's."""
+    from doubles import CALLS, FAKE_STYLES
+
+    from dancenet_core.request import SectionOverride
+
+    monkeypatch.setattr(addon.pipeline, "load_generator", lambda: reporting(form=FORM))
+    monkeypatch.setattr(addon.library, "library_styles", lambda _folder: ["zouk", FAKE_STYLES[-1], FAKE_STYLES[0]])
+    props = scene.dancenet
+    assert generate(scene, song, seed=3) == {"FINISHED"}
+    a1, a2 = props.sections["A1"], props.sections["A2"]
+    a1.style, a2.style, props.style = FAKE_STYLES[0], FAKE_STYLES[1], FAKE_STYLES[-1]
+    props.engine = "library"  # its styles: zouk and two of the fake ones, in another order
+    assert (a1.style, a2.style, props.style) == (FAKE_STYLES[0], FAKE_STYLES[1], FAKE_STYLES[-1])
+    assert generate(scene, song, seed=3) == {"FINISHED"}
+    assert CALLS[-1]["sections"] == (SectionOverride("A1", style=FAKE_STYLES[0]),
+                                     SectionOverride("A2", style=FAKE_STYLES[1]))
+    assert CALLS[-1]["style"] == FAKE_STYLES[-1]
+    a2.style = props.style = "zouk"
+    props.engine = "dancenet"
+    assert (a1.style, a2.style, props.style) == (FAKE_STYLES[0], "zouk", "zouk")
+    a2.style = addon.panelsettings.AS_DANCE
+    assert a2.style == addon.panelsettings.AS_DANCE and a1.style == FAKE_STYLES[0]

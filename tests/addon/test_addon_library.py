@@ -99,7 +99,9 @@ def test_the_style_menu_offers_the_librarys_styles(scene, addon):
     names = [item[0] for item in addon.properties._styles(props, bpy.context)]
     assert names == ["auto", "indian", "latin", "modern", "salsa", "swing"]
     props.library = str(Path(bpy.app.tempdir) / "no such library")
-    assert [item[0] for item in addon.properties._styles(props, bpy.context)] == ["auto"]
+    items = addon.properties._styles(props, bpy.context)
+    assert [item[0] for item in items] == ["auto", "salsa"] and "not this engine's" in items[1][1]  # kept, said so
+    assert props.style == "salsa"
 
 
 def test_a_style_of_the_library_is_danced(scene, addon, real, library_folder):

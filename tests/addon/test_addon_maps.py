@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from doubles import convention_rest, synthetic_motion
 from scene_helpers import bpy, build_armature, fcurves_of
-from test_addon_animator import CONVENTIONS, landing_error
+from test_addon_conventions import CONVENTIONS, landing_error
 
 from dancenet_core import rigmap
 from dancenet_core.skeleton import DEFAULT_SKELETON

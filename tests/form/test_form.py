@@ -1,4 +1,4 @@
-"""The song's form (music/form.py) and returns danced again (returns.py), on made-up analyses and motions, and
+"""The song's form (music/form.py) and returns danced again (shaping/repeats.py), on made-up analyses and motions, and
 with both engines on a song arranged A B A C A B from 8-bar sections of real training songs."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dancenet_core.music.features import analyze_music
 from dancenet_core.music.form import Section, SongForm, song_form
 from dancenet_core.representation import heading_frames
 from dancenet_core.request import DanceRequest
-from dancenet_core.returns import _copies, carry_on, dance_returns
+from dancenet_core.shaping.repeats import _copies, carry_on, dance_returns
 from tests.made_up import analysis, arranged_training_song
 
 BAR_FRAMES = 20  # 2-s bars at 10 fps: four beats of 0.5 s
@@ -245,13 +245,46 @@ def test_the_library_engine_lists_each_figure_as_danced_returns_included(arrange
     assert starts[0] == pytest.approx(result.start_s) and ends[-1] == pytest.approx(result.duration_s, abs=0.05)
     assert starts[1:] == pytest.approx(ends[:-1])  # one after another, the whole dance
     assert all(f["clip"].endswith(".bvh") and f["clip_s"][0] <= f["clip_s"][1] for f in figures)
+    assert_whole_figures(figures, float(np.median(np.diff(result.beat_times))))
+    assert len(figures) < len(result.form.bar_starts) - 1  # a figure of a bar or more, not pieces of frames
     a1, a2 = (next(s for s in result.form.sections if s.name == n) for n in ("A1", "A2"))
 
-    def clips(section) -> list[tuple[str, float]]:
-        return [(f["clip"], round(f["clip_s"][0], 1)) for f in figures
-                if section.start_s + 0.5 <= f["song_s"][0] < section.end_s - 0.5]
+    def inside(section) -> list[dict]:
+        return [f for f in figures if section.start_s - 0.05 <= f["song_s"][0] < section.end_s - 0.5]
 
-    assert clips(a2) == clips(a1) and len(clips(a1)) >= 4  # the return is the same figures, from the same places
+    assert [(f["clip"], f["clip_s"][0]) for f in inside(a2)] == [(f["clip"], f["clip_s"][0]) for f in inside(a1)]
+    assert len(inside(a1)) >= 3  # the return is the same figures, from the same places
+    assert [f["repeats"]["song_span"][0] for f in inside(a2)] == [f["song_s"][0] for f in inside(a1)]
+    assert all(not f["repeats"]["mirrored"] for f in inside(a2))
+    # C1 danced anew in the take: its own figures, listed whole.
+    c1 = next(s for s in result.form.sections if s.name == "C1")
+    redo = generate_dance(DanceRequest(arranged_song, engine="library", seed=3, continue_from=result.motions[0],
+                                       at_s=1.0, redo_section="C1"))
+    anew = redo.details[0]["danced_figures"]
+    assert anew[0]["song_s"][0] == pytest.approx(c1.start_s, abs=0.05)
+    assert anew[-1]["song_s"][1] == pytest.approx(c1.end_s, abs=0.05)
+    assert_whole_figures(anew, float(np.median(np.diff(result.beat_times))))
+
+
+def assert_whole_figures(figures: list[dict], beat_s: float) -> None:
+    """Each entry of a figure list a whole figure: at least a beat long but where the dance's start or end cuts
+    it, never carrying on the entry before it (the same clip from where that one ends), and a repeat pointing at
+    an earlier span of the list danced from the same clip."""
+    for k, f in enumerate(figures):
+        (s0, s1), (c0, c1) = f["song_s"], f["clip_s"]
+        assert s1 - s0 >= beat_s or k in (0, len(figures) - 1), f
+        assert f["warp"] == pytest.approx((c1 - c0) / (s1 - s0), abs=0.01)
+        if k:
+            e = figures[k - 1]
+            carried = e["clip"] == f["clip"] and abs(e["clip_s"][1] - c0) < 0.02 and (
+                e.get("repeats", {}).get("mirrored") == f.get("repeats", {}).get("mirrored"))
+            assert not carried or ("repeats" in e) != ("repeats" in f) or (
+                "repeats" in f and e["repeats"]["song_span"][1] != f["repeats"]["song_span"][0]), (e, f)
+        if "repeats" in f:
+            r0, r1 = f["repeats"]["song_span"]
+            assert r1 <= s0 and r1 - r0 == pytest.approx(s1 - s0, rel=0.3)
+            assert any(e["clip"] == f["clip"] and e["song_s"][0] - 1e-3 <= r0 and r1 <= e["song_s"][1] + 1e-3
+                       for e in figures[:k]), f
 
 
 def test_a_run_of_returns_is_one_copy_of_the_run_it_repeats():
@@ -278,3 +311,21 @@ def test_a_copy_leaves_out_the_bars_it_would_play_beyond_the_real_time_limit():
     form = SongForm(edges, (), sections)
     assert _copies(form, "repeat", {}) == [(16, 20, 0, "repeat"), (21, 32, 5, "repeat")]
     assert _copies(form, "repeat", {"A2": "anew"}) == [(24, 32, 8, "repeat")]
+
+
+def test_a_song_of_more_than_26_sections_labels_each_music_apart():
+    """14 groups X Y X of music heard once each: 28 labels. Past Z the labels go on (AA, AB, ...), so the 27th
+    new music is not called A again and its return is not danced as a copy of A1."""
+    letters = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+    song = "".join(letters[2 * g] + letters[2 * g + 1] + letters[2 * g] for g in range(14))
+    form = song_form(analysis(arranged_features(song, bars=4)))
+    assert len(form.sections) == len(song)
+    music = dict(zip(form.sections, song, strict=True))
+    label_of = {}
+    for s in form.sections:
+        assert label_of.setdefault(music[s], s.label) == s.label  # the same music, the same label
+    assert len(set(label_of.values())) == 28 and [label_of[c] for c in letters[26:28]] == ["AA", "AB"]
+    assert form.labels.split() == [s.label for s in form.sections]
+    for first, _end, source, _how in _copies(form, "repeat", {}):
+        target = next(s for s in form.sections if s.first_bar == first)
+        assert music[next(s for s in form.sections if s.first_bar == source)] == music[target]

@@ -17,7 +17,7 @@ from dancenet_core.beats import kinematic_velocity
 from dancenet_core.bvh import BvhData, write_bvh, write_bvh_data
 from dancenet_core.cli import main
 from dancenet_core.evaluation.metrics import foot_sliding
-from dancenet_core.generate import generate_dance, shape_takes
+from dancenet_core.generate import generate_dance
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
@@ -27,6 +27,7 @@ from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
 from dancenet_core.request import DanceRequest
+from dancenet_core.shaping.takes import shape_takes
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0

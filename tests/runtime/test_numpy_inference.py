@@ -228,7 +228,8 @@ def test_generation_imports_no_torch(tmp_path: Path) -> None:
     never imported."""
     code = (
         "import sys\n"
-        "from dancenet_core import kinematics, motion, rootmotion, bvh\n"
+        "from dancenet_core import kinematics, motion, bvh\n"
+        "from dancenet_core.shaping import rootmotion\n"
         "from dancenet_core.generate import available_styles, generate_dance\n"
         "from dancenet_core.request import DanceRequest\n"
         f"r = generate_dance(DanceRequest({str(SONG)!r}, seed=1, end_s=12.0))\n"

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d, minimum_filter1d
 
-from .kinematics import fk_numpy
-from .motion import Motion
-from .skeleton import BODY_JOINTS, TOE_ENDS
+from ..kinematics import fk_numpy
+from ..motion import Motion
+from ..skeleton import BODY_JOINTS, TOE_ENDS
 
 
 def floor_offset(motion: Motion) -> float:

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .motion import Motion
-from .representation import decode, start_pose
-from .skeleton import Skeleton
+from ..motion import Motion
+from ..representation import decode, start_pose
+from ..skeleton import Skeleton
 
 BLEND_S = 0.4  # how long the join's offset takes to fade (a beat at 150 BPM)
 DIFFERENCES = 3  # kept frames compared with the new dance's: the offset's value, slope and curvature

@@ -22,15 +22,16 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .constants import WARP_RANGE
+from ..constants import WARP_RANGE
+from ..motion import Motion
+from ..music.form import SongForm
+from ..representation import heading_frames, yaw_and_swing
 from .floor import toe_ends
-from .motion import Motion
-from .music.form import SongForm
-from .representation import heading_frames, yaw_and_swing
+from .placing import mixed, sample_frames, turned
 
 JOIN_SLACK_S = 0.25  # a join may move this far from the section's boundary, to where the two dances are most alike
-# How long a join's crossfade lasts: on the validation songs a 0.4-s join cost FID_k (40.8 against 35.8 danced
-# anew), 1.2 s costs about none (36.7; 2 s: 36.1) and keeps the return 0.09 alike (docs/form.md).
+# How long a join's crossfade lasts: long enough that the join between two unrelated dances costs the dance's
+# realism about nothing, short enough that the return stays alike to its source (measured in docs/experiments.md).
 JOIN_BLEND_S = 1.2
 
 
@@ -44,12 +45,10 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, kee
     edges = form.bar_starts - start_s  # bar boundaries in the dance's time
     fps = motion.fps
     slack = int(round(JOIN_SLACK_S * fps))
-    for target, target_end, source, how in _copies(form, mode, section_modes or {}):
-        t0, t1, s0 = edges[target] * fps, edges[target_end] * fps, edges[source] * fps
+    for target, target_end, source, how in copies_danced(form, start_s, fps, motion.num_frames, mode, keep_until_s,
+                                                         section_modes):
         n_bars = target_end - target
-        first, last = int(np.ceil(t0)), min(int(np.ceil(t1)), motion.num_frames)
-        if s0 < 0 or first - slack < max(keep_until_s * fps, s0 + slack + 1) or last - first < 4 * slack:
-            continue
+        first, last = int(np.ceil(edges[target] * fps)), min(int(np.ceil(edges[target_end] * fps)), motion.num_frames)
         # Source time of every frame the copy may cover (the joins may move by up to `slack` frames either way,
         # the crossfade out runs on after the section), bar against bar, carried on at the first and last bars'
         # pace beyond them.
@@ -67,6 +66,22 @@ def dance_returns(motion: Motion, form: SongForm, start_s: float, mode: str, kee
         frame_map[entry:leave] = frame_map[np.clip(np.round(src_frames[entry - offset:leave - offset]).astype(int), 0,
                                                    motion.num_frames - 1)]
     return motion, frame_map
+
+
+def copies_danced(form: SongForm, start_s: float, fps: float, num_frames: int, mode: str, keep_until_s: float = 0.0,
+                  section_modes: dict[str, str] | None = None) -> list[tuple[int, int, int, str]]:
+    """The copies `dance_returns` lays on a dance of `num_frames` frames at `fps` (see its arguments): (first bar,
+    end bar, source's first bar, mode) for each of `_copies` whose source lies within the danced part, after the
+    frames kept, and that is long enough for its joins."""
+    edges = form.bar_starts - start_s
+    slack = int(round(JOIN_SLACK_S * fps))
+    out = []
+    for target, target_end, source, how in _copies(form, mode, section_modes or {}):
+        t0, t1, s0 = edges[target] * fps, edges[target_end] * fps, edges[source] * fps
+        first, last = int(np.ceil(t0)), min(int(np.ceil(t1)), num_frames)
+        if s0 >= 0 and first - slack >= max(keep_until_s * fps, s0 + slack + 1) and last - first >= 4 * slack:
+            out.append((target, target_end, source, how))
+    return out
 
 
 def _laid(motion: Motion, copy: Motion, offset: int, entry: int, leave: int, blend: int) -> Motion:
@@ -162,19 +177,7 @@ def _blend(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
 
     q0, q1 = carried(q0), carried(q1)
     side = ((q0 * q1).sum(-1) * w * (1 - w)).sum(0)  # [J]
-    return _mixed(q0, np.where(side[:, None] < 0, -q1, q1), w)
-
-
-def _nlerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Rotation vectors [N, J, 3] between quaternions [N, J, 4] at weights [N, 1] (normalised linear
-    interpolation, the short way round: for neighbouring frames)."""
-    return _mixed(q0, np.where((q0 * q1).sum(-1, keepdims=True) < 0, -q1, q1), w)
-
-
-def _mixed(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Rotation vectors [N, J, 3] of the normalised weighted sums of quaternions [N, J, 4] at weights [N, 1]."""
-    mixed = q0 * (1 - w[:, :, None]) + q1 * w[:, :, None]
-    return Rotation.from_quat(mixed.reshape(-1, 4)).as_rotvec().reshape(q0.shape[0], -1, 3)
+    return mixed(q0, np.where(side[:, None] < 0, -q1, q1), w)
 
 
 def _bar_map(frames: np.ndarray, target: np.ndarray, source: np.ndarray) -> np.ndarray:
@@ -245,18 +248,10 @@ def _within_warp(edges: np.ndarray, first: int, end: int, source: int, how: str)
 
 
 def _sample(motion: Motion, frames: np.ndarray) -> Motion:
-    """The motion at fractional frames (rotations by normalised quaternion interpolation, which between
-    neighbouring frames is slerp to within 1e-4 rad at a quarter the cost; the root linear), as a Motion;
-    frames before the first carry on its first step backwards (a phrase copied from the dance's start still
-    has a lead-in that moves as the dance moves)."""
-    frames = np.minimum(frames, motion.num_frames - 1)
-    lo = np.clip(np.floor(frames).astype(int), 0, max(0, motion.num_frames - 2))
-    hi = np.minimum(lo + 1, motion.num_frames - 1)
-    w = (frames - lo)[:, None]
-    first, last = lo.min(), hi.max() + 1
-    q = Rotation.from_rotvec(motion.rotations[first:last].reshape(-1, 3)).as_quat().reshape(last - first, -1, 4)
-    rots = _nlerp(q[lo - first], q[hi - first], w)
-    root = motion.root_positions[lo] * (1 - w) + motion.root_positions[hi] * w
+    """The motion at fractional frames (`placing.sample_frames`), as a Motion; frames before the first carry on its
+    first step backwards (a phrase copied from the dance's start still has a lead-in that moves as the dance
+    moves), frames after the last hold it."""
+    rots, root = sample_frames(motion.rotations, motion.root_positions, np.minimum(frames, motion.num_frames - 1))
     return Motion(rots, root, motion.fps, motion.skeleton)
 
 
@@ -269,32 +264,6 @@ def _placed(piece: Motion, k: int, at: Motion) -> Motion:
     """`piece` turned about the vertical and moved across the floor so that its frame k stands where `at` (one
     frame) stands and faces where it faces (its height and its pose untouched)."""
     yaw = _heading(at, 0) - _heading(piece, k)
-    turn = Rotation.from_euler("y", yaw)
-    root = piece.root_positions - piece.root_positions[k] * np.array([1.0, 0.0, 1.0])
-    root = turn.apply(root) + at.root_positions[0] * np.array([1.0, 0.0, 1.0])
-    rots = piece.rotations.copy()
-    rots[:, 0] = (turn * Rotation.from_rotvec(rots[:, 0])).as_rotvec()
+    shift = (at.root_positions[0] - Rotation.from_euler("y", yaw).apply(piece.root_positions[k]))[[0, 2]]
+    rots, root = turned(piece.rotations, piece.root_positions, yaw, shift)
     return Motion(rots, root, piece.fps, piece.skeleton)
-
-
-def figures_as_danced(figures: list[dict], frame_map: np.ndarray, fps: float, start_s: float) -> list[dict]:
-    """A plan's figures (`choreography.Report.figures`: clip, clip_s, song_s, ratio) as the take dances them once
-    its returns are danced again (`frame_map` from `dance_returns`): each run of frames that plays on through one
-    figure of the plan, with where in the song it now plays and where in its clip it starts and ends."""
-    if not figures or not len(frame_map):
-        return figures
-    song0 = np.array([f["song_s"][0] for f in figures])
-    planned = start_s + frame_map / fps  # where in the song the plan danced each frame
-    row = np.clip(np.searchsorted(song0, planned, side="right") - 1, 0, len(figures) - 1)
-    cut = np.flatnonzero((np.diff(row) != 0) | (np.abs(np.diff(frame_map) - 1.0) > 0.5)) + 1
-    out = []
-    for a, b in zip([0, *cut], [*cut, len(frame_map)], strict=True):
-        f = figures[row[a]]
-        (s0, s1), (c0, c1) = f["song_s"], f["clip_s"]
-
-        def clip_at(t: float, s0: float = s0, s1: float = s1, c0: float = c0, c1: float = c1) -> float:
-            return round(float(c0 + (c1 - c0) * np.clip((t - s0) / max(s1 - s0, 1e-9), 0.0, 1.0)), 3)
-
-        out.append({"clip": f["clip"], "clip_s": [clip_at(planned[a]), clip_at(planned[b - 1] + 1 / fps)],
-                    "song_s": [round(start_s + a / fps, 3), round(start_s + b / fps, 3)], "ratio": f["ratio"]})
-    return out

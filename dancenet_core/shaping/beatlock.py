@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .beats import motion_beats
-from .constants import WARP_RANGE
-from .kinematics import fk_numpy
-from .representation import FeatureLayout, decode, heading_frames, root_steps
-from .series import interp_frames
-from .skeleton import BODY_JOINTS, Skeleton
+from ..beats import motion_beats
+from ..constants import WARP_RANGE
+from ..kinematics import fk_numpy
+from ..representation import FeatureLayout, decode, heading_frames, root_steps
+from ..series import interp_frames
+from ..skeleton import BODY_JOINTS, Skeleton
 
 # A dance beat is paired with a song beat at most this share of the song's median beat interval away: half an
 # interval pairs each dance beat with its nearest song beat at most.

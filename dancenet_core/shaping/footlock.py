@@ -15,10 +15,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..kinematics import fk_numpy
+from ..motion import Motion
+from ..skeleton import BODY_JOINTS, JOINT_INDEX
 from .floor import toe_ends
-from .kinematics import fk_numpy
-from .motion import Motion
-from .skeleton import BODY_JOINTS, JOINT_INDEX
 
 LEGS = (("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "right_ankle"))
 BLEND_S = 0.12  # a hold eases in and out over at least this long (3 frames at 25 fps), so a foot never jumps

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .bvh import _write, read_bvh
-from .constants import ROOT_MODES
-from .errors import DanceNetError
-from .motion import Motion
-from .representation import yaw_and_swing
-from .skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
+from ..bvh import _write, read_bvh
+from ..constants import ROOT_MODES
+from ..errors import DanceNetError
+from ..motion import Motion
+from ..representation import yaw_and_swing
+from ..skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
 
 ROOT_BONE = "root"
 # Units a dance's BVH may come in (ours and Blender's exporter write metres; other tools centimetres or inches),
