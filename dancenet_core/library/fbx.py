@@ -35,6 +35,7 @@ SAMPLE_VERSION = "fbx-sample-1"  # change whenever what a sample holds changes
 DANCER_M = (0.5, 2.5)  # a rig whose rest pose is this tall is taken to be in metres already
 DANCER_HEIGHT_M = 1.7  # else the unit that makes it nearest this tall
 UNIT_GUESSES = (*(10.0**k for k in range(-4, 5)), 0.0254)  # what a rig read in another unit is multiplied by
+WORKER = "dancenet_core.library.fbx_worker"  # the module a worker process runs
 INSTALL_HINT = ("pip install 'dancenet[blender]' (Blender's Python module), or build the folder with Build Library "
                 "in Blender's DanceNet add-on")
 
@@ -131,7 +132,7 @@ class Worker:
         root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p))
         self.log = tempfile.TemporaryFile()
-        self.proc = subprocess.Popen([sys.executable, "-m", "dancenet_core.library.fbx_worker", str(os.getpid())],
+        self.proc = subprocess.Popen([sys.executable, "-m", WORKER, str(os.getpid())],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, text=True,
                                      env=env)
 

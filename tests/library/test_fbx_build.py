@@ -136,3 +136,13 @@ def test_fbx_files_that_hold_no_dancer_are_one_line_each(rigs, cache, tmp_path, 
     assert notes[0].startswith("left out ascii.fbx: Blender could not import it (") and "Location" not in notes[0]
     assert notes[1] == "left out notes.fbx: not an FBX file (it does not begin as one)", notes
     capsys.readouterr()
+
+
+def test_a_worker_that_dies_costs_its_file_one_line_and_nothing_is_cached(rigs, cache, tmp_path, monkeypatch, capsys):
+    folder = _folder(rigs, tmp_path / "clips", ["generic"])
+    monkeypatch.setattr(fbx, "WORKER", "dancenet_core.no_such_worker")  # the worker process ends at once
+    assert main(["library", "build", str(folder)]) == 0
+    (note,) = MotionLibrary.load(library_path(folder)).notes
+    assert note.startswith("left out generic.fbx: Blender's module stopped while reading it (") and "No module" in note
+    assert not list(cache.glob(f"{fbx.SAMPLE_VERSION}/*.npz"))  # tried again next time
+    capsys.readouterr()
