@@ -194,8 +194,8 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
         return library, path
     files = clip_files(folder)
     if not files:
-        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; in "
-                            "Blender also .fbx)")
+        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; .fbx "
+                            "files too, with Blender's module)")
     workers = default_workers() if workers is None else workers
     fbx_files = [f for f in files if is_fbx(f)]
     notes = []
@@ -210,9 +210,12 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
                                 f"{fbx.INSTALL_HINT}")
     elif fbx_files and fbx_samples is None:
         count = iter(range(1, len(fbx_files) + 1))
-        fbx_samples = fbx.sample_files(
-            fbx_files, workers, should_cancel=should_cancel,
-            done=lambda f: progress and progress(f"sampling {f.name}", next(count) / len(fbx_files)))
+
+        def sampled(f: Path) -> None:
+            if progress is not None:
+                progress(f"sampling {f.name}", next(count) / len(fbx_files))
+
+        fbx_samples = fbx.sample_files(fbx_files, workers, sampled, should_cancel)
     if should_cancel is not None and should_cancel():
         raise GenerationCancelled
     hints = clip_hints(folder, files)

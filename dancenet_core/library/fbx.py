@@ -1,8 +1,8 @@
 """FBX clips for a library build, without Blender in this process: each file's armature animation as Blender
 samples it (`RigSample`: every bone's world rest and per-frame matrices, in metres), by worker processes that
 import Blender's Python module (`fbx_worker.py`, where the `blender` extra is installed) or by the add-on in
-Blender, cached by the file's content; then its bones mapped onto our joints by the core's mapper
-(`rigmap.humanoid_joints`) into the `ArmatureClip` the build reads.
+Blender, cached by the file's content; the build then maps its bones onto our joints with the core's mapper
+(`rigmap.humanoid_joints`, in `build._fbx_clip`).
 
 A sample is cached under the cache folder by the digest of the file's bytes, so a rebuild samples only the FBX
 files it has not seen; a file Blender could not read is cached as its one-line reason (a damaged file stays
