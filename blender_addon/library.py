@@ -14,7 +14,7 @@ import bpy
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import DanceRequest
 
-from . import job, rigclips, song
+from . import job, rigchoice, rigclips, song
 from .job import error_message
 from .panelsettings import panel_settings
 
@@ -142,7 +142,8 @@ def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
     def from_folder(results: list[Any]) -> job.Work:
         sampled = dict(zip(fbx, results, strict=True))
         return lambda progress, should_cancel: summary(build_library(
-            folder, progress=progress, should_cancel=should_cancel, fbx_samples=sampled)[0])
+            folder, progress=progress, should_cancel=should_cancel, fbx_samples=sampled,
+            saved_maps=rigchoice.saved_maps_dir())[0])
 
     return job.Staged(steps, from_folder, "dancenet-build-library")
 

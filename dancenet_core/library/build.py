@@ -39,7 +39,7 @@ from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rigmap import BoneMap, humanoid_joints, load_file
+from ..rigmap import BoneMap, auto_map, humanoid_joints, load_file
 from ..shaping.floor import floor_track
 from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
@@ -179,13 +179,14 @@ NO_BLENDER = "left out the FBX files"  # a build without Blender's module says s
 def build_library(folder: str | Path, force: bool = False, report: Callable[[str], object] = print,
                   progress: StageProgress | None = None, should_cancel: Callable[[], bool] | None = None,
                   fbx_samples: Mapping[Path, fbx.RigSample | str] | None = None,
-                  workers: int | None = None) -> tuple[MotionLibrary, Path]:
+                  workers: int | None = None, saved_maps: Path | None = None) -> tuple[MotionLibrary, Path]:
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
     written). FBX files are read from what Blender sampled of them: `fbx_samples` where the caller sampled them
     (the add-on in Blender: each file's sample, or why it has none, without the file's name), else by worker processes
-    with Blender's module (`library/fbx.py`); without that module they are left out in one line. Clips are
-    read by `workers` processes side by side (default `environment.default_workers`)."""
+    with Blender's module (`library/fbx.py`); without that module they are left out in one line. `saved_maps`: a
+    folder of the user's bone maps that Auto tries on the FBX files' rigs too (the add-on's Save Bone Map). Clips
+    are read by `workers` processes side by side (default `environment.default_workers`)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
@@ -221,7 +222,7 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     hints = clip_hints(folder, files)
     clips, left = _read_clips(
         [(f.name, str(f.relative_to(folder)), hints[f],
-          partial(_fbx_clip, f, (fbx_samples or {}).get(f), hints[f]) if is_fbx(f)
+          partial(_fbx_clip, f, (fbx_samples or {}).get(f), hints[f], saved_maps) if is_fbx(f)
           else partial(read_clip, f, hints[f].bone_map)) for f in files], report, progress, should_cancel, workers)
     notes += left
     if not clips:
@@ -230,11 +231,14 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
 
 
-def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints) -> Motion:
-    """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints."""
+def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints, saved_maps: Path | None) -> Motion:
+    """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints (by the manifest's bone
+    map, else Auto, with the user's `saved_maps` where given)."""
     if not isinstance(sampled, fbx.RigSample):
         raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
-    joints = humanoid_joints(sampled.rest_bones(), path.name, hint.bone_map)
+    bones = sampled.rest_bones()
+    bone_map = hint.bone_map or (auto_map(bones, path.name, saved_maps) if saved_maps is not None else None)
+    joints = humanoid_joints(bones, path.name, bone_map)
     order = sorted(joints)
     index = [sampled.names.index(joints[j]) for j in order]
     return armature_motion(ArmatureClip(path.name, hint.style, order, sampled.rest[index], sampled.pose[:, index],
