@@ -79,6 +79,17 @@ def _mixamo_ends(prefix: str, fingers: tuple[str, ...]) -> dict[str, str]:
     return ends
 
 
+def _deepmotion() -> dict[str, str]:
+    """DeepMotion's (video capture) names: hips_JNT, l_upleg_JNT, ..."""
+    names = {"pelvis": "hips_JNT", "spine1": "spine_JNT", "spine2": "spine1_JNT", "spine3": "spine2_JNT",
+             "neck": "neck_JNT", "head": "head_JNT"}
+    for side, s in (("left", "l"), ("right", "r")):
+        names |= {f"{side}_{j}": f"{s}_{part}_JNT" for j, part in (
+            ("hip", "upleg"), ("knee", "leg"), ("ankle", "foot"), ("foot", "toebase"), ("collar", "shoulder"),
+            ("shoulder", "arm"), ("elbow", "forearm"), ("wrist", "hand"))}
+    return names
+
+
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 MMD = shipped("MMD", body_only=True)
 CONVENTIONS: dict[str, Convention] = {
@@ -103,6 +114,7 @@ CONVENTIONS: dict[str, Convention] = {
     "metarig": Convention(shipped("METARIG", fingers=()), between={"head": "spine.005"}, a_pose_deg=20.0,
                           z_up=True, unit=0.001),
     "mpfb": Convention(shipped("MPFB"), a_pose_deg=25.0, unit=0.01, z_up=True, fps=25.0),
+    "deepmotion": Convention(_deepmotion(), ends={"head": "head_JNT_end"}, unit=0.01, a_pose_deg=20.0),
     "generic": Convention(_generic(), ends={"head": "HeadEnd"}, unit=0.01, t_pose=True, fps=24.0),
     "generic_sided": Convention(shipped("GENERIC", body_only=True), a_pose_deg=15.0, order="YXZ"),
     "cmu": Convention(shipped("CMU"), amass=True),

@@ -55,8 +55,10 @@ class BoneMap:
 def name_key(name: str) -> tuple[str, str]:
     """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
     case, width and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh"), and
-    MMD's 左足ＩＫ, 足IK.L (MMD Tools' side suffixes) give ("l", "足ik")."""
+    MMD's 左足ＩＫ, 足IK.L (MMD Tools' side suffixes) give ("l", "足ik"); a suffix that only says it is a joint
+    (DeepMotion's l_upleg_JNT, a _bind or _joint) is left out."""
     local = unicodedata.normalize("NFKC", name.rsplit(":", 1)[-1])
+    local = re.sub(r"(?i)(?<=.)[._\- ](jnt|joint|bind)$", "", local)
     side, rest = "", local
     if m := re.match(r"^([左右])(.+)$", local):
         side, rest = "l" if m[1] == "左" else "r", m[2]

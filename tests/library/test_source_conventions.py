@@ -1,6 +1,6 @@
 """Library clips of any humanoid skeleton: a made-up dance written as BVH in each convention the library reads
 (`tests/conventions.py`: Mixamo with and without its prefix and with any fingers, VRM, Unreal, Character Creator,
-Rokoko, Xsens, OptiTrack, DAZ, MMD's Japanese names, Rigify and its metarig, MPFB, generic names, CMU, ours;
+Rokoko, Xsens, OptiTrack, DeepMotion, DAZ, MMD's Japanese names, Rigify and its metarig, MPFB, generic names, CMU, ours;
 centimetres, millimetres, inches; Z up; A-poses; 24-120 fps; a prepended T-pose frame) is read back as the dance it
 is; a skeleton that is no humanoid is one line that says what it lacks; a folder's manifest names a bone map for
 bones Auto cannot find."""
@@ -57,7 +57,8 @@ FOUND = {"mixamo": "Mixamo", "mixamo_bare": "Mixamo", "mixamo1_handless": "Mixam
          "unreal": "Unreal Manny/Quinn", "character_creator": "Character Creator", "rokoko": "Rokoko",
          "daz": "DAZ Genesis", "mmd": "MMD", "rigify": "Rigify", "metarig": "Rigify metarig",
          "mpfb": "MakeHuman/MPFB", "generic": "Generic names", "generic_sided": "Generic names", "cmu": "CMU",
-         "ours_z_up_mm": "SMPL-X", "xsens": "Xsens MVN", "motive": "OptiTrack Motive"}  # fmt: skip
+         "ours_z_up_mm": "SMPL-X", "xsens": "Xsens MVN", "motive": "OptiTrack Motive",
+         "deepmotion": "Mixamo"}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", list(CONVENTIONS))
