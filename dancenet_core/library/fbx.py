@@ -21,6 +21,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable, Sequence
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -200,9 +201,12 @@ def sample_files(files: Sequence[Path], workers: int, done: Callable[[Path], obj
                     worker.close()
                     worker = None
                 else:
-                    if why is not None:
-                        save_sample(where, why)
-                    result = load_sample(where) or "its sample could not be read back"
+                    if why is not None:  # the file's own fault: kept, so the next build does not try again
+                        result = why
+                        with suppress(DanceNetError):  # a cache that cannot be written costs only that
+                            save_sample(where, why)
+                    else:
+                        result = load_sample(where) or "its sample could not be read back"
                 with lock:
                     out[f] = result
                 done(f)
