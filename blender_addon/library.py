@@ -14,7 +14,7 @@ import bpy
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import DanceRequest
 
-from . import job, rigclips, song
+from . import job, rigchoice, rigclips, song
 from .job import error_message
 from .panelsettings import panel_settings
 
@@ -104,13 +104,15 @@ def summary(library: Any, what: str = "file") -> str:
 
 
 def _noted(name: str, sample: Callable[[], Any]) -> Any:
-    """A sampled clip, or the one line saying why clip `name` could not be sampled (one the build leaves out)."""
+    """A sampled clip, or the one line saying why clip `name` could not be sampled (one the build leaves out;
+    without a name: an FBX file's, which the build names)."""
     try:
         return sample()
     except DanceNetError as e:
-        return f"{name}: {e}"
+        why = str(e)
     except Exception as e:
-        return f"{name}: {error_message(e, 'Sampling')}"
+        why = error_message(e, "Sampling")
+    return f"{name}: {why}" if name else why
 
 
 def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
@@ -135,12 +137,13 @@ def build_job(props: bpy.types.PropertyGroup) -> job.Staged:
     if folder is None:
         raise DanceNetError("Choose the Library folder of BVH clips to build (the shipped library needs no build)")
     fbx = [] if not folder.is_dir() or library_path(folder).is_file() else [f for f in clip_files(folder) if is_fbx(f)]
-    steps = [(f"importing {f.name}", partial(_noted, f.name, partial(rigclips.sample_fbx, f))) for f in fbx]
+    steps = [(f"importing {f.name}", partial(_noted, "", partial(rigclips.sample_fbx, f))) for f in fbx]
 
     def from_folder(results: list[Any]) -> job.Work:
         sampled = dict(zip(fbx, results, strict=True))
         return lambda progress, should_cancel: summary(build_library(
-            folder, progress=progress, should_cancel=should_cancel, fbx=sampled)[0])
+            folder, progress=progress, should_cancel=should_cancel, fbx_samples=sampled,
+            saved_maps=rigchoice.saved_maps_dir())[0])
 
     return job.Staged(steps, from_folder, "dancenet-build-library")
 

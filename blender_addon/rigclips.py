@@ -36,6 +36,7 @@ from . import rigchoice, song, takes
 
 if TYPE_CHECKING:  # the library's build code is loaded when a library is built, not with the add-on
     from dancenet_core.library.build import ArmatureClip
+    from dancenet_core.library.fbx import RigSample
 
 STYLE_PROP = "dancenet_style"
 BPM_PROP, METER_PROP = "dancenet_bpm", "dancenet_meter"
@@ -83,24 +84,14 @@ def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
 def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str], frames: range, name: str,
             style: str, fps: float, bpm: float | None = None, meter: int | None = None) -> ArmatureClip:
     """The world matrices of `rig`'s bones for our `joints` (in `scene`) at each of `frames`, as Blender evaluates
-    them."""
+    them (the core's sampling, `fbx_worker.sample_armature`: in metres)."""
     from dancenet_core.library.build import ArmatureClip
+    from dancenet_core.library.fbx_worker import sample_armature
 
+    sample = sample_armature(rig, scene, frames, fps)
     order = sorted(joints)
-    bones = rig.pose.bones
-    index = [bones.find(joints[j]) for j in order]
-    rest = np.array([np.array(rig.data.bones[joints[j]].matrix_local) for j in order])
-    buf = np.empty(len(bones) * 16, dtype=np.float32)
-    pose = np.empty((len(frames), len(order), 4, 4))
-    for t, frame in enumerate(frames):
-        scene.frame_set(frame)
-        evaluated = rig.evaluated_get(scene.view_layers[0].depsgraph)
-        evaluated.pose.bones.foreach_get("matrix", buf)
-        world = np.array(evaluated.matrix_world)
-        if t == 0:  # the rest pose where the object is as the clip starts
-            rest = world @ rest
-        pose[t] = world @ np.swapaxes(buf.reshape(-1, 4, 4)[index], 1, 2)  # Blender lays matrices out by column
-    return ArmatureClip(name, style, order, rest, pose, fps, bpm, meter)
+    index = [sample.names.index(joints[j]) for j in order]
+    return ArmatureClip(name, style, order, sample.rest[index], sample.pose[:, index], fps, bpm, meter)
 
 
 def _frames(action: bpy.types.Action) -> range:
@@ -108,26 +99,28 @@ def _frames(action: bpy.types.Action) -> range:
     return range(math.floor(first), math.ceil(last) + 1)
 
 
-def sample_fbx(path: Path) -> ArmatureClip:
-    """An FBX file's clip: its armature's animation (the first take), imported into a scene of its own and removed
-    again; a one-line DanceNetError when it holds none a library can use."""
-    if not hasattr(bpy.ops.import_scene, "fbx"):
-        raise DanceNetError("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
+def sample_fbx(path: Path) -> RigSample:
+    """An FBX file's armature animation (its bones as Blender evaluates them: `fbx.RigSample`), read as the
+    command line's worker reads it (`fbx_worker`), in a scene of its own that is removed again, and cached by
+    the file's content; a one-line DanceNetError when it holds none a library can use (also cached)."""
+    from dancenet_core.library import fbx, fbx_worker
+
+    if (hit := fbx.cached_sample(path)) is not None:
+        if isinstance(hit, str):
+            raise DanceNetError(hit)
+        return hit
     with scratch_scene() as scene:
         try:
-            bpy.ops.import_scene.fbx(filepath=str(path))
-        except RuntimeError as e:  # an error, or the importer's traceback: its last line says what
-            why = str(e).strip().splitlines()[-1].removeprefix("Error: ")[:160]
-            raise DanceNetError(f"Blender could not import it ({why})") from e
-        rigs = [o for o in scene.objects if o.type == "ARMATURE"]
-        if not rigs:
-            raise DanceNetError("no armature in it")
-        animated = [o for o in rigs if o.animation_data is not None and o.animation_data.action is not None]
-        if not animated:
-            raise DanceNetError(f"its armature '{rigs[0].name}' has no animation")
-        rig = animated[0]
-        return _sample(rig, scene, humanoid_joints(rig), _frames(rig.animation_data.action), path.name, "",
-                       song.scene_fps(scene))
+            fbx_worker.import_fbx(path)
+            rig, frames = fbx_worker.animated_armature(scene)
+            fbx_worker.only(rig, scene)
+            sample = fbx_worker.sample_armature(rig, scene, frames, song.scene_fps(scene))
+        except DanceNetError as e:
+            if "importer is off" not in str(e):  # the file's own fault: the same next time
+                fbx.save_sample(fbx.sample_path(path), str(e))
+            raise
+    fbx.save_sample(fbx.sample_path(path), sample)
+    return sample
 
 
 @dataclass(frozen=True)

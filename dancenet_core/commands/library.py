@@ -1,14 +1,19 @@
-"""`dancenet library build FOLDER`: analyse a folder of BVH clips into a motion library for `dancenet generate SONG
---engine library --library FOLDER` (cached by the folder's content: a second build of the same clips only reads)."""
+"""`dancenet library build FOLDER`: analyse a folder of BVH and FBX clips into a motion library for `dancenet generate
+SONG --engine library --library FOLDER` (cached by the folder's content: a second build of the same clips only
+reads). FBX files are read by Blender's Python module where it is installed (the `blender` extra), each cached by
+its content; clips are read side by side (`--jobs`), with a progress bar."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from ..errors import DanceNetError
 from ..library.analysis import UNSURE
 from ..library.build import build_library
 from ..library.store import MotionLibrary
@@ -16,15 +21,37 @@ from ..library.store import MotionLibrary
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="library_command", required=True)
-    b = sub.add_parser("build", help="read and analyse a folder of BVH clips (beats, tempo, bars, cut points)")
-    b.add_argument("folder", type=Path, help="folder of .bvh clips (subfolders, or a manifest.csv, name styles)")
+    b = sub.add_parser("build", help="read and analyse a folder of BVH and FBX clips (beats, tempo, bars, cuts)")
+    b.add_argument("folder", type=Path, help="folder of .bvh and .fbx clips (subfolders, or a manifest.csv, name "
+                                             "styles); FBX needs Blender's module: pip install 'dancenet[blender]'")
     b.add_argument("--force", action="store_true", help="build again even when this content was built before")
+    b.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="clips read side by side (default: $DANCENET_WORKERS or 2)")
     b.set_defaults(handler=_cmd_build)
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
+    if args.jobs is not None and args.jobs < 1:
+        raise DanceNetError(f"--jobs must be 1 or more, got {args.jobs}")
     t = time.perf_counter()
-    library, path = build_library(args.folder, force=args.force)
+    bars: dict[str, tqdm] = {}
+
+    def progress(stage: str, fraction: float) -> None:
+        """One bar for sampling FBX files, one for reading the clips (shown when a build takes a while)."""
+        kind = stage.split(" ", 1)[0]
+        if kind not in bars:
+            for bar in bars.values():
+                bar.close()
+            bars[kind] = tqdm(total=1000, desc=kind, unit="", delay=0.5, leave=False, file=sys.stderr,
+                              bar_format="{desc} {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]")
+        bars[kind].update(round(1000 * fraction) - bars[kind].n)
+
+    try:
+        library, path = build_library(args.folder, force=args.force, progress=progress, workers=args.jobs,
+                                      report=tqdm.write)
+    finally:
+        for bar in bars.values():
+            bar.close()
     print(clip_table(library))
     unsure = [n for n, c in zip(library.names, library.confidence, strict=True) if c < UNSURE]
     if unsure:

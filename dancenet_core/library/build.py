@@ -5,10 +5,11 @@ A BVH clip is read when its skeleton is a humanoid's (`bvhclip.py`): the bone ma
 (`rigmap`) finds our joints in it by their names (Mixamo, VRM, Unreal, Character Creator, Rokoko, DAZ, MMD, Rigify,
 generic names, CMU's, ours: the shipped bone maps) or by the skeleton's shape, and its motion is read like a rig's in
 Blender (`jointmap.armature_pose`): any rest pose, any up axis and facing, in the unit that makes it a dancer's size.
-In Blender, a clip may also be a rig's animation (an FBX file of the folder, or an action of the open file): the
-add-on samples each mapped bone's world matrices (`ArmatureClip`), and `armature_motion` reads them onto our
-skeleton whatever the rig's rest pose (`jointmap.armature_pose`). The command line, without Blender, reads no FBX:
-a folder holding some answers so in one line.
+An FBX clip is its armature's animation as Blender samples it (`library/fbx.py`: every bone's world matrices, in
+metres, cached by the file's content): by worker processes with Blender's Python module on the command line, by the
+add-on in Blender; the same mapper finds our joints among its bones (`ArmatureClip`, as for an action of the open
+file that the add-on samples), and `armature_motion` reads them whatever the rig's rest pose. Without Blender's
+module the command line leaves the FBX files out in one line and builds the rest.
 Clips are resampled to the library's 25 fps and put on the floor (`floor.floor_track`). A clip's style is its
 folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`, and
 optionally `bpm` and `meter`: the clip's tempo and beats per bar, taken over what `analysis.py` reads from the
@@ -22,19 +23,25 @@ Torch-free and without the data package (the add-on's Build Library runs it insi
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import os
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from ..csvtable import read_rows
+from ..environment import default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rigmap import BoneMap, load_file
+from ..rigmap import BoneMap, auto_map, humanoid_joints, load_file
 from ..shaping.floor import floor_track
+from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
 from .bvhclip import bvh_rig
 from .match import frames_of
@@ -152,23 +159,33 @@ def is_fbx(path: Path) -> bool:
 
 
 def cached(path: Path, force: bool, report: Callable[[str], object]) -> MotionLibrary | None:
-    """The library built before at `path`, if any (None: build it, also when that one is damaged)."""
+    """The library built before at `path`, if any (None: build it, also when that one is damaged, or when it
+    left its FBX files out for want of Blender's module, which is there now)."""
     if path.is_file() and not force:
         try:
-            return MotionLibrary.load(path)
+            library = MotionLibrary.load(path)
         except ValueError as e:
             report(f"rebuilding the library: {first_line(e)}")
+            return None
+        if not any(n.startswith(NO_BLENDER) for n in library.notes) or not fbx.bpy_installed():
+            return library
     return None
+
+
+NO_BLENDER = "left out the FBX files"  # a build without Blender's module says so in its notes
 
 
 def build_library(folder: str | Path, force: bool = False, report: Callable[[str], object] = print,
                   progress: StageProgress | None = None, should_cancel: Callable[[], bool] | None = None,
-                  fbx: Mapping[Path, ArmatureClip | str] | None = None) -> tuple[MotionLibrary, Path]:
+                  fbx_samples: Mapping[Path, fbx.RigSample | str] | None = None,
+                  workers: int | None = None, saved_maps: Path | None = None) -> tuple[MotionLibrary, Path]:
     """The library of `folder`, built now (or read from the cache when its content was built before). `progress`
     hears each clip as it is read; `should_cancel` stops the build between clips (GenerationCancelled, nothing
-    written). `fbx`: the folder's FBX files as Blender sampled them (or why it could not, one line each that
-    names the file);
-    without it a folder with FBX files is answered in one line (only Blender reads them)."""
+    written). FBX files are read from what Blender sampled of them: `fbx_samples` where the caller sampled them
+    (the add-on in Blender: each file's sample, or why it has none, without the file's name), else by worker processes
+    with Blender's module (`library/fbx.py`); without that module they are left out in one line. `saved_maps`: a
+    folder of the user's bone maps that Auto tries on the FBX files' rigs too (the add-on's Save Bone Map). Clips
+    are read by `workers` processes side by side (default `environment.default_workers`)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DanceNetError(f"motion library folder not found: {folder} (give a folder of BVH clips)")
@@ -177,30 +194,54 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
         return library, path
     files = clip_files(folder)
     if not files:
-        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; in "
-                            "Blender also .fbx)")
+        raise DanceNetError(f"no BVH clips in {folder}; put .bvh files in it (subfolders name their style; .fbx "
+                            "files too, with Blender's module)")
+    workers = default_workers() if workers is None else workers
     fbx_files = [f for f in files if is_fbx(f)]
-    if fbx_files and fbx is None:
-        raise DanceNetError(f"{folder} holds {len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''} "
-                            f"({fbx_files[0].name}...), which only Blender reads: build this folder with Build "
-                            "Library in the DanceNet add-on's panel")
+    notes = []
+    if fbx_files and fbx_samples is None and not fbx.bpy_installed():
+        many = f"{len(fbx_files)} FBX file{'s' if len(fbx_files) > 1 else ''}"
+        notes.append(f"{NO_BLENDER} ({many}: {fbx_files[0].name}...): reading them needs Blender's Python "
+                     f"module: {fbx.INSTALL_HINT}")
+        report(notes[-1])
+        files = [f for f in files if not is_fbx(f)]
+        if not files:
+            raise DanceNetError(f"{folder} holds only FBX files, and reading them needs Blender's Python module: "
+                                f"{fbx.INSTALL_HINT}")
+    elif fbx_files and fbx_samples is None:
+        count = iter(range(1, len(fbx_files) + 1))
+
+        def sampled(f: Path) -> None:
+            if progress is not None:
+                progress(f"sampling {f.name}", next(count) / len(fbx_files))
+
+        fbx_samples = fbx.sample_files(fbx_files, workers, sampled, should_cancel)
+    if should_cancel is not None and should_cancel():
+        raise GenerationCancelled
     hints = clip_hints(folder, files)
-    clips, notes = _read_clips(
+    clips, left = _read_clips(
         [(f.name, str(f.relative_to(folder)), hints[f],
-          lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f, hints[f].bone_map))
-         for f in files],
-        report, progress, should_cancel)
+          partial(_fbx_clip, f, (fbx_samples or {}).get(f), hints[f], saved_maps) if is_fbx(f)
+          else partial(read_clip, f, hints[f].bone_map)) for f in files], report, progress, should_cancel, workers)
+    notes += left
     if not clips:
-        first = notes[0].removeprefix("left out ")
+        first = left[0].removeprefix("left out ")
         raise DanceNetError(f"none of the {len(files)} clips in {folder} could be read: {first}")
     return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
 
 
-def _fbx_clip(path: Path, sampled: ArmatureClip | str | None) -> Motion:
-    """An FBX file's clip from what Blender sampled of it."""
-    if not isinstance(sampled, ArmatureClip):
-        raise DanceNetError(sampled or f"{path.name}: not sampled in Blender")
-    return armature_motion(sampled)
+def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints, saved_maps: Path | None) -> Motion:
+    """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints (by the manifest's bone
+    map, else Auto, with the user's `saved_maps` where given)."""
+    if not isinstance(sampled, fbx.RigSample):
+        raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
+    bones = sampled.rest_bones()
+    bone_map = hint.bone_map or (auto_map(bones, path.name, saved_maps) if saved_maps is not None else None)
+    joints = humanoid_joints(bones, path.name, bone_map)
+    order = sorted(joints)
+    index = [sampled.names.index(joints[j]) for j in order]
+    return armature_motion(ArmatureClip(path.name, hint.style, order, sampled.rest[index], sampled.pose[:, index],
+                                        sampled.fps, hint.bpm, hint.meter))
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
@@ -224,8 +265,8 @@ def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes:
     if not clips:
         raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
     done, left = _read_clips(
-        [("a clip", c, ClipHints(), lambda c=c: _not_sampled(c)) if isinstance(c, str)
-         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), lambda c=c: armature_motion(c)) for c in clips],
+        [("a clip", c, ClipHints(), partial(_not_sampled, c)) if isinstance(c, str)
+         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), partial(armature_motion, c)) for c in clips],
         report, progress, should_cancel)
     if not done:
         raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
@@ -238,21 +279,49 @@ def _not_sampled(why: str) -> Motion:
 
 
 def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], Motion]]], report: Callable[[str], object],
-                progress: StageProgress | None, should_cancel: Callable[[], bool] | None
+                progress: StageProgress | None, should_cancel: Callable[[], bool] | None, workers: int = 1
                 ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
-    """Each (shown name, clip name, hints, read) read and analysed in turn, between cancel checks: the clips, and a
+    """Each (shown name, clip name, hints, read) read and analysed, by `workers` processes side by side where
+    there are several (forked: nothing is imported again), between cancel checks: the clips in order, and a
     "left out ..." line (also reported) for each that could not be read."""
-    clips, notes = [], []
-    for i, (shown, name, hint, read) in enumerate(items):
-        if should_cancel is not None and should_cancel():
-            raise GenerationCancelled
-        if progress is not None:
-            progress(f"reading {shown}", i / len(items))
+    results: list[tuple[str, str, Motion, ClipAnalysis] | str] = []
+    if workers > 1 and len(items) > 1 and "fork" in mp.get_all_start_methods():
+        pool = ProcessPoolExecutor(min(workers, len(items)), mp_context=mp.get_context("fork"),
+                                   initializer=end_with_parent, initargs=(os.getpid(),))
         try:
-            motion = read()
-        except DanceNetError as e:
-            notes.append(f"left out {first_line(e)}")
-            report(notes[-1])
-            continue
-        clips.append((name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)))
+            futures = [pool.submit(_read_one, item) for item in items]
+            for i, future in enumerate(futures):
+                while not future.done():
+                    if should_cancel is not None and should_cancel():
+                        raise GenerationCancelled
+                    wait([future], timeout=0.1)
+                if progress is not None:
+                    progress(f"reading {items[i][0]}", (i + 1) / len(items))
+                results.append(future.result())
+        finally:
+            stop_pool(pool) if len(results) < len(items) else pool.shutdown()
+    else:
+        for i, item in enumerate(items):
+            if should_cancel is not None and should_cancel():
+                raise GenerationCancelled
+            if progress is not None:
+                progress(f"reading {item[0]}", i / len(items))
+            results.append(_read_one(item))
+    clips, notes = [], []
+    for r in results:
+        if isinstance(r, str):
+            notes.append(r)
+            report(r)
+        else:
+            clips.append(r)
     return clips, notes
+
+
+def _read_one(item: tuple[str, str, ClipHints, Callable[[], Motion]]) -> tuple[str, str, Motion, ClipAnalysis] | str:
+    """A clip read and analysed, or the "left out ..." line saying why it could not be."""
+    _shown, name, hint, read = item
+    try:
+        motion = read()
+    except DanceNetError as e:
+        return f"left out {first_line(e)}"
+    return name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)

@@ -1,7 +1,7 @@
 """A rig's animation as Blender samples it (world rest and pose matrices per bone) read onto our
 skeleton (`jointmap.armature_pose`, `library.build.armature_motion`), made here without Blender: our skeleton
 posed into an A-pose rest (arms 45 degrees down, the spine leaning), laid out Z-up facing -Y in centimetres under
-an object scale of 0.01 with bones rolled every which way, then danced; and the command line's answer to FBX."""
+an object scale of 0.01 with bones rolled every which way, then danced."""
 
 from __future__ import annotations
 
@@ -11,8 +11,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dancenet_core.bvh import write_bvh
-from dancenet_core.cli import main
 from dancenet_core.jointmap import armature_pose, min_rotation, tail_offsets
 from dancenet_core.kinematics import fk_numpy
 from dancenet_core.library.build import ArmatureClip, armature_motion, build_armature_library
@@ -136,20 +134,6 @@ def test_a_rig_too_short_a_clip_or_not_a_humanoid_is_one_line(tmp_path: Path,
         build_armature_library([blip], "blip")
     with pytest.raises(Exception, match="^no action animates a humanoid armature in this file: Cube: no armature$"):
         build_armature_library([], "none", notes=["Cube: no armature"])
-
-
-def test_the_command_line_says_fbx_needs_blender(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                 capsys: pytest.CaptureFixture) -> None:
-    monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
-    folder = tmp_path / "mixamo"
-    folder.mkdir()
-    write_bvh(folder / "a.bvh", dance(4.0))
-    (folder / "Samba Dancing.fbx").write_bytes(b"Kaydara FBX Binary  \x00")
-    assert main(["library", "build", str(folder)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
-    assert "holds 1 FBX file (Samba Dancing.fbx...), which only Blender reads: build this folder with Build " \
-           "Library in the DanceNet add-on's panel" in err
 
 
 def test_the_smallest_rotation_turns_any_direction_onto_any_other() -> None:
