@@ -10,9 +10,12 @@ import pickle
 import signal
 import subprocess
 import sys
+import tempfile
+from contextlib import suppress
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from tqdm import tqdm
 
@@ -92,17 +95,50 @@ def _fbx_extra(request: DanceRequest, paths: list[Path]) -> Extra:
 
 def write_fbx_takes(result: Any, request: DanceRequest, paths: list[Path]) -> None:
     """Each take of `result` (as danced) as an FBX file on the add-on's rig, one path per take, written by the
-    add-on's FBX writer in a child process with Blender's bpy: neither bpy nor the add-on loads here. The result
-    and request go to it pickled on its stdin; its failure is one line."""
+    add-on's FBX writer in a child process with Blender's bpy: neither bpy nor the add-on loads here. The writer
+    is kept for this process' next song (Blender starts once per worker); its failure is one line."""
     check_fbx()
+    writer, errors = _fbx_writer()
+    try:
+        pickle.dump((result, request, [str(p) for p in paths]), writer.stdin)
+        writer.stdin.flush()
+        reply = writer.stdout.readline().decode(errors="replace")
+    except OSError:  # it died before it read the song
+        reply = ""
+    except BaseException:  # interrupted: its answer would be taken for the next song's
+        _end_writer(writer, errors)
+        raise
+    if reply == "ok\n":
+        return
+    if reply.startswith("error "):
+        raise DanceNetError(f"--fbx: {reply.removeprefix('error ').strip()}")
+    code = _end_writer(writer, errors)
+    errors.seek(0)
+    said = [line for line in errors.read().decode(errors="replace").splitlines() if line.strip()]
+    errors.close()
+    ended = f"exit status {code}" if code >= 0 else _signal_name(-code)
+    raise DanceNetError(f"--fbx: {said[-1].strip() if said else f'the FBX writer ended with {ended}'}")
+
+
+def _end_writer(writer: subprocess.Popen, errors: IO[bytes]) -> int:
+    """Stop the writer (the next song starts another); its exit status."""
+    _fbx_writer.cache_clear()
+    writer.kill()
+    for pipe in (writer.stdin, writer.stdout):
+        with suppress(OSError):
+            pipe.close()
+    return writer.wait()
+
+
+@cache
+def _fbx_writer() -> tuple[subprocess.Popen, IO[bytes]]:
+    """The add-on's FBX writer as this process' child, which ends with it (its stdin closes; a kill takes it
+    along), and the temporary file its stderr goes to, read for the last line if it dies."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(CHECKOUT), os.environ.get("PYTHONPATH")]))}
-    run = subprocess.run([sys.executable, str(FBX_WRITER), str(os.getpid()), *map(str, paths)],
-                         input=pickle.dumps((result, request)), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                         env=env, check=False)
-    if run.returncode != 0:
-        said = [line for line in run.stderr.decode(errors="replace").splitlines() if line.strip()]
-        ended = f"exit status {run.returncode}" if run.returncode > 0 else _signal_name(-run.returncode)
-        raise DanceNetError(f"--fbx: {said[-1].strip() if said else f'the FBX writer ended with {ended}'}")
+    errors = tempfile.TemporaryFile()
+    process = subprocess.Popen([sys.executable, str(FBX_WRITER), str(os.getpid())], stdin=subprocess.PIPE,
+                               stdout=subprocess.PIPE, stderr=errors, env=env)
+    return process, errors
 
 
 def _signal_name(number: int) -> str:

@@ -465,20 +465,25 @@ def test_fbx_for_every_take_beside_generate_s_files(songs: Path, tmp_path: Path,
 @pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs the bpy module (the blender extra)")
 def test_fbx_loads_neither_bpy_nor_the_add_on_in_the_core_s_process(songs: Path, tmp_path: Path) -> None:
     """A worker's own song (the task it runs) with --fbx, in a fresh interpreter: the FBX files are written, by
-    the add-on's writer in a child process, and the worker's process has loaded neither bpy nor any add-on code."""
+    the add-on's writer in a child process (after a song it failed, in one line), and the worker's process has
+    loaded neither bpy nor any add-on code."""
     probe = (
         "import json, sys\nfrom pathlib import Path\nfrom dancenet_core.catalog import CatalogSong\n"
-        "from dancenet_core.commands.batch import GenerateTask\nfrom dancenet_core.request import options\n"
+        "from dancenet_core.commands.batch import GenerateTask, write_fbx_takes\n"
+        "from dancenet_core.errors import DanceNetError\nfrom dancenet_core.request import DanceRequest, options\n"
         f"song = Path({str(songs / 'song 03.wav')!r})\n"
+        "try:\n    write_fbx_takes('not a result', DanceRequest(song), [])\n"
+        "except DanceNetError as e:\n    said = str(e)\n"
         "defaults = {name: default for name, default, o in options() if o.flag} | {'takes': 2, 'seed': 7}\n"
         "row = GenerateTask(defaults, fbx=True)(CatalogSong(str(song), song, 'song_03'), "
         f"Path({str(tmp_path / 'song_03')!r}))\n"
-        "print(json.dumps([row['files'], sorted(sys.modules)]))"
+        "print(json.dumps([said, row['files'], sorted(sys.modules)]))"
     )
     (tmp_path / "song_03").mkdir()  # as dance_song makes it
     run = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
-    files, modules = json.loads(run.stdout.splitlines()[-1])
+    said, files, modules = json.loads(run.stdout.splitlines()[-1])
+    assert said == "--fbx: AttributeError: 'str' object has no attribute 'motions'"  # and the writer goes on
     assert {"song_03_take1.fbx", "song_03_take2.fbx"} <= set(files)
     assert (tmp_path / "song_03" / "song_03_take2.fbx").read_bytes().startswith(b"Kaydara FBX Binary")
     loaded = [m for m in modules if m.split(".")[0] in ("bpy", "blender_addon", "batch", "fbx_takes")]
