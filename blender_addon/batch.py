@@ -139,18 +139,6 @@ def _scene_with_dance(addon: SimpleNamespace, request: Any, result: Any) -> tupl
     return context, addon.pipeline.apply_result(context, addon.pipeline.Plan(request), result)
 
 
-def write_fbx(result: Any, request: Any, paths: list[Path]) -> None:
-    """Each take of a generated dance (as danced, before `shape_takes`) on the add-on's default rig as an FBX
-    file, one path per take: `dancenet batch --fbx`, which runs this in its worker processes with pip's bpy."""
-    addon = _addon()
-    context, applied = _scene_with_dance(addon, request, result)
-    rig = bpy.data.objects[applied.rig]
-    with _quiet():
-        for name, path in zip(applied.actions, paths, strict=True):
-            addon.takes.choose_take(rig, bpy.data.actions[name])
-            addon.export.export_fbx(context, rig, path)
-
-
 @contextlib.contextmanager
 def _quiet() -> Iterator[None]:
     """Blender's exporters and renderer report the temporary names they write to (atomic.atomic_path) on

@@ -142,6 +142,19 @@ def _imports(package: str) -> dict[str, set[str]]:
     return graph
 
 
+def test_the_core_loads_no_module_by_file() -> None:
+    """import-linter's contract "The core never imports the add-on" sees import statements only: a module loaded
+    from its file (importlib's spec_from_file_location, runpy) would pass it, so the core does neither (it runs
+    the add-on's FBX writer as a script in a child process)."""
+    found = []
+    for path in sorted((REPO / "dancenet_core").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            name = node.attr if isinstance(node, ast.Attribute) else node.id if isinstance(node, ast.Name) else None
+            if name in ("spec_from_file_location", "SourceFileLoader", "run_path", "exec_module"):
+                found.append(f"{path.relative_to(REPO)}:{node.lineno} {name}")
+    assert found == []
+
+
 @pytest.mark.parametrize("package", ["dancenet_core", "blender_addon"])
 def test_no_import_circle(package: str) -> None:
     """No module imports, at its top or late inside a function, a module that imports it back (directly or

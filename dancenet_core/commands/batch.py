@@ -6,11 +6,16 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import pickle
+import signal
+import subprocess
 import sys
+import tempfile
+from contextlib import suppress
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from tqdm import tqdm
 
@@ -21,9 +26,10 @@ from ..outputs import safe_stem
 from ..request import DanceRequest, add_options, options_from
 from .generate import Extra, dance_into, names
 
-# The add-on's batch mode, which keys a dance onto its rig in Blender's `bpy` module (a source checkout has it
-# beside the package; the Blender extension is the add-on itself).
-ADDON_BATCH = Path(__file__).resolve().parents[2] / "blender_addon" / "batch.py"
+# The add-on's FBX writer, which keys a dance onto its rig with Blender's `bpy` module, run as a script in a
+# process of its own (a source checkout has the add-on beside the package; the Blender extension is the add-on).
+CHECKOUT = Path(__file__).resolve().parents[2]
+FBX_WRITER = CHECKOUT / "blender_addon" / "fbx_takes.py"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -82,28 +88,72 @@ class GenerateTask:
 
 def _fbx_extra(request: DanceRequest, paths: list[Path]) -> Extra:
     def write(result: Any, temp: dict[Path, Path]) -> None:
-        _addon_batch().write_fbx(result, request, [temp[p] for p in paths])
+        write_fbx_takes(result, request, [temp[p] for p in paths])
 
     return paths, write
 
 
-@cache
-def _addon_batch() -> Any:
-    """The add-on's batch module (`write_fbx`), loaded from its file once per process."""
+def write_fbx_takes(result: Any, request: DanceRequest, paths: list[Path]) -> None:
+    """Each take of `result` (as danced) as an FBX file on the add-on's rig, one path per take, written by the
+    add-on's FBX writer in a child process with Blender's bpy: neither bpy nor the add-on loads here. The writer
+    is kept for this process' next song (Blender starts once per worker); its failure is one line."""
     check_fbx()
-    spec = importlib.util.spec_from_file_location("dancenet_addon_batch", ADDON_BATCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    writer, errors = _fbx_writer()
+    try:
+        pickle.dump((result, request, [str(p) for p in paths]), writer.stdin)
+        writer.stdin.flush()
+        reply = writer.stdout.readline().decode(errors="replace")
+    except OSError:  # it died before it read the song
+        reply = ""
+    except BaseException:  # interrupted: its answer would be taken for the next song's
+        _end_writer(writer, errors)
+        raise
+    if reply == "ok\n":
+        return
+    if reply.startswith("error "):
+        raise DanceNetError(f"--fbx: {reply.removeprefix('error ').strip()}")
+    code = _end_writer(writer, errors)
+    errors.seek(0)
+    said = [line for line in errors.read().decode(errors="replace").splitlines() if line.strip()]
+    errors.close()
+    ended = f"exit status {code}" if code >= 0 else _signal_name(-code)
+    raise DanceNetError(f"--fbx: {said[-1].strip() if said else f'the FBX writer ended with {ended}'}")
+
+
+def _end_writer(writer: subprocess.Popen, errors: IO[bytes]) -> int:
+    """Stop the writer (the next song starts another); its exit status."""
+    _fbx_writer.cache_clear()
+    writer.kill()
+    for pipe in (writer.stdin, writer.stdout):
+        with suppress(OSError):
+            pipe.close()
+    return writer.wait()
+
+
+@cache
+def _fbx_writer() -> tuple[subprocess.Popen, IO[bytes]]:
+    """The add-on's FBX writer as this process' child, which ends with it (its stdin closes; a kill takes it
+    along), and the temporary file its stderr goes to, read for the last line if it dies."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(CHECKOUT), os.environ.get("PYTHONPATH")]))}
+    errors = tempfile.TemporaryFile()
+    process = subprocess.Popen([sys.executable, str(FBX_WRITER), str(os.getpid())], stdin=subprocess.PIPE,
+                               stdout=subprocess.PIPE, stderr=errors, env=env)
+    return process, errors
+
+
+def _signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
 
 
 def check_fbx() -> None:
-    """--fbx's needs, in one line each: Blender's bpy module and the add-on's code."""
+    """--fbx's needs, in one line each: Blender's bpy module and the add-on's FBX writer (neither imported)."""
     if importlib.util.find_spec("bpy") is None:
         raise DanceNetError('--fbx needs Blender\'s bpy module: pip install ".[blender]" (Python 3.11 for bpy 4.5), '
                             "or run the add-on's batch mode in Blender (blender_addon/batch.py --fbx)")
-    if not ADDON_BATCH.is_file():
+    if not FBX_WRITER.is_file():
         raise DanceNetError("--fbx keys each dance onto the add-on's rig, whose code (blender_addon/) comes with "
                             "the source checkout: run dancenet from an install of the checkout, or use the add-on's "
                             "batch mode: blender --background --python blender_addon/batch.py -- SONGS --out DIR --fbx")

@@ -460,3 +460,52 @@ def test_fbx_for_every_take_beside_generate_s_files(songs: Path, tmp_path: Path,
     for take in (1, 2):
         assert files.pop(f"song_05_take{take}.fbx").startswith(b"Kaydara FBX Binary")
     assert files == _files(alone)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs the bpy module (the blender extra)")
+def test_fbx_loads_neither_bpy_nor_the_add_on_in_the_core_s_process(songs: Path, tmp_path: Path) -> None:
+    """A worker's own song (the task it runs) with --fbx, in a fresh interpreter: the FBX files are written, by
+    the add-on's writer in a child process (after a song it failed, in one line), and the worker's process has
+    loaded neither bpy nor any add-on code."""
+    probe = (
+        "import json, sys\nfrom pathlib import Path\nfrom dancenet_core.catalog import CatalogSong\n"
+        "from dancenet_core.commands.batch import GenerateTask, write_fbx_takes\n"
+        "from dancenet_core.errors import DanceNetError\nfrom dancenet_core.request import DanceRequest, options\n"
+        f"song = Path({str(songs / 'song 03.wav')!r})\n"
+        "try:\n    write_fbx_takes('not a result', DanceRequest(song), [])\n"
+        "except DanceNetError as e:\n    said = str(e)\n"
+        "defaults = {name: default for name, default, o in options() if o.flag} | {'takes': 2, 'seed': 7}\n"
+        "row = GenerateTask(defaults, fbx=True)(CatalogSong(str(song), song, 'song_03'), "
+        f"Path({str(tmp_path / 'song_03')!r}))\n"
+        "print(json.dumps([said, row['files'], sorted(sys.modules)]))"
+    )
+    (tmp_path / "song_03").mkdir()  # as dance_song makes it
+    run = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    said, files, modules = json.loads(run.stdout.splitlines()[-1])
+    assert said == "--fbx: AttributeError: 'str' object has no attribute 'motions'"  # and the writer goes on
+    assert {"song_03_take1.fbx", "song_03_take2.fbx"} <= set(files)
+    assert (tmp_path / "song_03" / "song_03_take2.fbx").read_bytes().startswith(b"Kaydara FBX Binary")
+    loaded = [m for m in modules if m.split(".")[0] in ("bpy", "blender_addon", "batch", "fbx_takes")]
+    assert loaded == []
+    assert not [m for m in modules if "addon" in m]
+
+
+@pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="needs the bpy module (the blender extra)")
+def test_a_failing_fbx_writer_is_one_line_in_the_song_s_record_and_leaves_no_file(
+        songs: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The writer's traceback ends as one line of the song's row; none of the song's files is written, not even
+    those written before the FBX (generate's own), and no temporary file is left."""
+    from dancenet_core.commands import batch
+
+    writer = tmp_path / "writer.py"
+    writer.write_text("import sys\nprint('some chatter', file=sys.stderr)\nraise RuntimeError('no rig here')\n")
+    monkeypatch.setattr(batch, "FBX_WRITER", writer)
+    song = songs / "song 04.wav"
+    out = tmp_path / "out"
+    defaults = {name: default for name, default, o in options() if o.flag} | {"seed": 7}
+    status = run_catalog(read_catalog([song]), out, GenerateTask(defaults, fbx=True), where="inline")
+    assert status.counts()["failed"] == 1
+    row = _rows(out)["song 04.wav"]
+    assert row["error"] == "--fbx: RuntimeError: no rig here"
+    assert not (out / "song_04").exists() or not any((out / "song_04").iterdir())
