@@ -58,34 +58,33 @@ def sized(motion: Motion) -> Motion:
     return Motion(motion.rotations, motion.root_positions * SIZE, motion.fps, DEFAULT_SKELETON.scaled(SIZE))
 
 
+_LIMBS = ("hip", "knee", "ankle", "foot", "collar", "shoulder", "elbow", "wrist")
+_CAPS = (("left", "Left"), ("right", "Right"))
+
+
+def _limbs(bones: tuple[str, ...], sides: tuple[tuple[str, str], ...] = _CAPS) -> dict[str, str]:
+    """Our limb joints of both sides -> the rig's names, from one name pattern per joint of `_LIMBS` ({s}: the
+    side as the rig writes it)."""
+    return {f"{side}_{joint}": bone.format(s=s) for side, s in sides for joint, bone in zip(_LIMBS, bones, strict=True)}
+
+
 def names(kind: str) -> dict[str, str]:
     """Our joint -> the rig's bone name, for each joint the rig has."""
-    out: dict[str, str] = {}
     if kind == "mixamo":
         out = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck",
                "head": "Head"}
-        for side, cap in (("left", "Left"), ("right", "Right")):
-            out |= {f"{side}_hip": f"{cap}UpLeg", f"{side}_knee": f"{cap}Leg", f"{side}_ankle": f"{cap}Foot",
-                    f"{side}_foot": f"{cap}ToeBase", f"{side}_collar": f"{cap}Shoulder", f"{side}_shoulder":
-                    f"{cap}Arm", f"{side}_elbow": f"{cap}ForeArm", f"{side}_wrist": f"{cap}Hand"}
+        for side, cap in _CAPS:
+            out |= _limbs(("{s}UpLeg", "{s}Leg", "{s}Foot", "{s}ToeBase", "{s}Shoulder", "{s}Arm", "{s}ForeArm",
+                           "{s}Hand"), ((side, cap),))
             out |= {f"{side}_{f}{k}": f"{cap}Hand{f.capitalize()}{k}" for f in FINGERS for k in (1, 2, 3)}
         return {j: "mixamorig:" + b for j, b in out.items()}
     if kind == "generic":
-        out = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Chest", "spine3": "UpperChest", "neck": "Neck",
-               "head": "Head"}
-        for side, cap in (("left", "Left"), ("right", "Right")):
-            out |= {f"{side}_hip": f"{cap}UpperLeg", f"{side}_knee": f"{cap}LowerLeg", f"{side}_ankle":
-                    f"{cap}Foot", f"{side}_foot": f"{cap}Toes", f"{side}_collar": f"{cap}Shoulder",
-                    f"{side}_shoulder": f"{cap}UpperArm", f"{side}_elbow": f"{cap}LowerArm", f"{side}_wrist":
-                    f"{cap}Hand"}
-        return out
-    out = {"pelvis": "pelvis", "spine1": "spine_01", "spine2": "spine_02", "spine3": "spine_03", "neck": "neck_01",
-           "head": "head"}
-    for side, s in (("left", "l"), ("right", "r")):
-        out |= {f"{side}_hip": f"thigh_{s}", f"{side}_knee": f"calf_{s}", f"{side}_ankle": f"foot_{s}",
-                f"{side}_foot": f"ball_{s}", f"{side}_collar": f"clavicle_{s}", f"{side}_shoulder":
-                f"upperarm_{s}", f"{side}_elbow": f"lowerarm_{s}", f"{side}_wrist": f"hand_{s}"}
-    return out
+        return {"pelvis": "Hips", "spine1": "Spine", "spine2": "Chest", "spine3": "UpperChest", "neck": "Neck",
+                "head": "Head"} | _limbs(("{s}UpperLeg", "{s}LowerLeg", "{s}Foot", "{s}Toes", "{s}Shoulder",
+                                          "{s}UpperArm", "{s}LowerArm", "{s}Hand"))
+    return {"pelvis": "pelvis", "spine1": "spine_01", "spine2": "spine_02", "spine3": "spine_03", "neck": "neck_01",
+            "head": "head"} | _limbs(("thigh_{s}", "calf_{s}", "foot_{s}", "ball_{s}", "clavicle_{s}", "upperarm_{s}",
+                                      "lowerarm_{s}", "hand_{s}"), (("left", "l"), ("right", "r")))
 
 
 def rest_rotations(kind: str) -> np.ndarray:
