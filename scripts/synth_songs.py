@@ -35,10 +35,12 @@ class SongSpec:
     swing: bool = False
     seconds: float = 60.0
     seed: int = 0
+    drums: bool = True  # False: bass and chords alone (the beat in the harmony, no percussion)
 
     @property
     def name(self) -> str:
-        return f"song_{self.bpm:g}_{self.meter}-4_{'swing' if self.swing else 'straight'}"
+        return f"song_{self.bpm:g}_{self.meter}-4_{'swing' if self.swing else 'straight'}" + \
+            ("" if self.drums else "_nodrums")
 
 
 def _tone(freq: float, dur: float, amp: float, decay: float) -> np.ndarray:
@@ -64,6 +66,17 @@ def _add(song: np.ndarray, at_s: float, sound: np.ndarray) -> None:
         song[i : i + len(sound)] += sound[: len(song) - i]
 
 
+def _drums(song: np.ndarray, rng: np.random.Generator, meter: int, pos: int, at_s: float, off_s: float) -> None:
+    """One beat's drums: kick on the downbeat (and the middle of a 4/4 bar), snare on the backbeats, hi-hats on
+    the beat and the off-beat."""
+    if pos == 0 or (meter == 4 and pos == 2):
+        _add(song, at_s, _kick(0.9))
+    if (meter == 4 and pos in (1, 3)) or (meter == 3 and pos in (1, 2)):
+        _add(song, at_s, _noise(rng, 0.15, 0.35 if meter == 4 else 0.2, 0.04))
+    _add(song, at_s, _noise(rng, 0.05, 0.08, 0.008))
+    _add(song, off_s, _noise(rng, 0.05, 0.06, 0.008))
+
+
 def synth_song(spec: SongSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(mono samples at SR, beat times [s], downbeat times [s]) of the song `spec` describes."""
     rng = np.random.default_rng(spec.seed)
@@ -76,12 +89,8 @@ def synth_song(spec: SongSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for k, t in enumerate(beats):
         pos, bar = k % spec.meter, k // spec.meter
         chord = CHORDS[bar % len(CHORDS)]
-        if pos == 0 or (spec.meter == 4 and pos == 2):
-            _add(song, t, _kick(0.9))
-        if (spec.meter == 4 and pos in (1, 3)) or (spec.meter == 3 and pos in (1, 2)):
-            _add(song, t, _noise(rng, 0.15, 0.35 if spec.meter == 4 else 0.2, 0.04))
-        _add(song, t, _noise(rng, 0.05, 0.08, 0.008))
-        _add(song, t + off * beat, _noise(rng, 0.05, 0.06, 0.008))
+        if spec.drums:
+            _drums(song, rng, spec.meter, pos, t, t + off * beat)
         bass = chord[0] / 2 if pos % 2 == 0 else chord[2] / 2
         _add(song, t, _tone(bass, 0.9 * beat, 0.45, 0.3 * beat + 0.05))
         if pos != 0:
