@@ -188,7 +188,8 @@ def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     """[max_lag] normalised autocorrelation (1 at lag 0), unbiased."""
     n = len(x)
     x = x - x.mean()
-    ac = correlate(x, x, mode="full", method="fft")[n - 1 : n - 1 + max_lag] / np.maximum(n - np.arange(max_lag), 1)
+    ac = correlate(x, x, mode="full", method="fft")[n - 1 : n - 1 + max_lag]
+    ac = np.pad(ac / np.maximum(n - np.arange(len(ac)), 1), (0, max_lag - len(ac)))  # lags past the clip: 0
     return ac / max(float(ac[0]), 1e-12)
 
 

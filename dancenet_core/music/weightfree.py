@@ -5,23 +5,23 @@ at 10 fps), so that the library engine and the song's form read it as they read 
 The default analysis runs madmom's networks (CC BY-NC-SA 4.0 model files); nothing here opens a model file or
 imports madmom (0.9 s to import alone). The steps, each a few numpy/scipy calls on a 3-minute song:
 
-1. Spectra. A 2048-sample STFT at 100 fps (`ONSET_FPS`) for the onsets, an 8192-sample one at 10 fps for the
-   chroma (5.4 Hz bins: the bass notes' pitch classes apart).
-2. Onsets. Spectral flux of the log-compressed magnitude, summed over log-spaced bands (every octave weighs
-   the same: a hi-hat's many bins do not drown a bass note), and the same flux below 250 Hz (the kick and the
-   bass) on its own, which the meter reads.
-3. Tempo. The onset envelope's autocorrelation, read through a comb (the lag and its multiples) for every beat
+1. Spectra. A 2048-sample STFT at 100 fps (`ONSET_FPS`) summed into log-spaced bands (12 an octave, 30 Hz -
+   16 kHz), and an 8192-sample one at 10 fps folded into pitch classes (55 Hz - 2 kHz; 5.4 Hz bins keep the
+   bass notes' pitch classes apart), each computed a block of frames at a time.
+2. Onsets. Spectral flux of the log-compressed band magnitudes, averaged over the bands (every octave weighs
+   the same: a hi-hat's many bins do not drown a bass note) less its moving mean; the compression is linear
+   below -40 dB of the loudest band, so the click that ends a note in silent high bands is no onset. Beside
+   it, the bass flux: the rise of the magnitude below 120 Hz (a kick, a bass note).
+3. Tempo. The onset envelope's autocorrelation read through a comb (the lag and its multiples) for every beat
    period from 60 to 200 BPM, times a wide log-normal preference around 110 BPM. Its octave is then settled by
-   what sits between the beats: a candidate whose every other beat is much weaker than the rest counts the
-   off-beats (halved); a candidate whose half-beats are as strong as its beats counts every other beat
-   (doubled).
+   the accents (onset and bass flux) between the beats: half-beats at least 0.7 as strong as the beats are
+   beats (the tempo doubled); every other beat under 0.3 of the rest is an off-beat (halved).
 4. Beats. Dynamic programming over the onset envelope (Ellis 2007): each frame's best chain of beats whose
-   intervals keep near the period, scored by the onsets they land on; the chain ending best near the song's end
-   is followed back.
-5. Meter and downbeats. Per beat, the bass flux on it and the change of harmony into it (cosine distance of
-   the chroma of the beat before and after); 3 or 4 beats to the bar, and the bar's phase, by how much these
-   stand out on one beat of the bar over the others, and by how the beat-synchronous chroma repeats every 3 or
-   every 4 beats (bars and four-bar phrases that repeat).
+   intervals keep near the period, scored by the onsets they land on, a block of half a period at a time (a
+   frame looks back at least that far); the chain ending best near the song's end is followed back.
+5. Meter and downbeats. The chroma averaged over each beat; for bars of 3 and of 4 beats, how much the harmony
+   of the bar's worth of beats from each beat differs from that of the bar's worth before it (chords change
+   with the bar); the meter, and the beat of the bar, on which that change stands out most over the others.
 
 The beat and downbeat columns hold a bump (0.05 s wide) on each tracked beat and downbeat, as the networks'
 activations peak there; the onset column the flux scaled to [0, 1]; the chroma each frame's energy per pitch
@@ -40,6 +40,7 @@ import numpy as np
 from scipy import fft
 from scipy.ndimage import maximum_filter1d
 from scipy.signal import correlate
+from scipy.sparse import csr_array
 
 from ..errors import first_line
 from ..progress import Progress
@@ -67,12 +68,12 @@ CHROMA_FRAME = 8192
 MIN_BPM, MAX_BPM = 60.0, 200.0
 PREFERRED_BPM, PREFERENCE_OCTAVES = 110.0, 1.0  # the log-normal tempo preference: centre and width (octaves)
 BASS_HZ = 120.0
-BASS_WEIGHT = 0.5  # the bass flux on a beat against the change of harmony into it, for the downbeats
 BANDS_PER_OCTAVE = 12
 TIGHTNESS = 100.0  # how strongly the beat chain keeps to the period (Ellis' alpha)
 HALVE_BELOW = 0.3  # every other beat this much weaker than the rest: they are off-beats
-DOUBLE_ABOVE = 0.5  # half-beats this strong against the beats: they are beats
+DOUBLE_ABOVE = 0.7  # half-beats this strong against the beats: they are beats
 BUMP_S = 0.05
+BLOCK_FRAMES = 512  # STFT frames transformed at a time
 FLOOR = 0.01  # the onsets' log compression is linear below this share of the song's loudest band (-40 dB): the
 # click that ends a note in silent high bands is no onset
 
@@ -122,7 +123,7 @@ def analyze_audio_weightfree(audio: Audio) -> MusicAnalysis:
     chroma = chroma_features(energy)
     period = beat_period(onset, bass)
     beats = track_beats(onset, period) / ONSET_FPS
-    meter, phase = meter_and_phase(beats, bass, np.sqrt(energy))
+    meter, phase = meter_and_phase(beats, np.sqrt(energy))
     downbeats = beats[phase::meter] if len(beats) else beats
     t = int(np.floor(len(x) / (SR // FPS) + 0.5))
     features = np.zeros((t, N_FEATURES), np.float32)
@@ -138,16 +139,23 @@ def analyze_audio_weightfree(audio: Audio) -> MusicAnalysis:
     return MusicAnalysis(features, beats, downbeats.copy(), tempo, audio.duration_s, FPS, None)
 
 
-def _spectrogram(x: np.ndarray, frame: int, hop: int) -> np.ndarray:
-    """|STFT| [frames, frame // 2 + 1] of x, frame j centred at sample j * hop (zero-padded at the ends)."""
+def _filtered_spectrogram(x: np.ndarray, frame: int, hop: int, matrix: csr_array, power: float) -> np.ndarray:
+    """|STFT| ** power of x, frame j centred at sample j * hop (zero-padded at the ends), times `matrix`
+    [frame // 2 + 1, K]: [frames, K]. In blocks of frames, so that no [frames, frame] array is ever held (a
+    3-minute song's would be 150 MB, and the time went to memory, not to the FFT)."""
     padded = np.pad(x, (frame // 2, frame // 2))
     n = 1 + (len(x) - 1) // hop
     frames = np.lib.stride_tricks.as_strided(padded, (n, frame), (padded.strides[0] * hop, padded.strides[0]),
                                              writeable=False)
-    return np.abs(fft.rfft(frames * np.hanning(frame).astype(np.float32), axis=1, workers=-1))
+    window = np.hanning(frame).astype(np.float32)
+    out = np.empty((n, matrix.shape[1]), np.float32)
+    for start in range(0, n, BLOCK_FRAMES):
+        mag = np.abs(fft.rfft(frames[start : start + BLOCK_FRAMES] * window, axis=1, workers=-1))
+        out[start : start + BLOCK_FRAMES] = (matrix.T @ (mag if power == 1 else mag**power).T).T
+    return out
 
 
-def _log_bands(freqs: np.ndarray, low: float, high: float) -> np.ndarray:
+def _log_bands(freqs: np.ndarray, low: float, high: float) -> csr_array:
     """[bins, bands] a sum over log-spaced bands (`BANDS_PER_OCTAVE`), each band's bins averaged."""
     edges = low * 2.0 ** (np.arange(0, np.log2(high / low) * BANDS_PER_OCTAVE + 1) / BANDS_PER_OCTAVE)
     band = np.searchsorted(edges, freqs) - 1
@@ -155,16 +163,15 @@ def _log_bands(freqs: np.ndarray, low: float, high: float) -> np.ndarray:
     m = np.zeros((len(freqs), len(edges) - 1), np.float32)
     m[np.flatnonzero(used), band[used]] = 1.0
     m = m[:, m.sum(axis=0) > 0]
-    return m / m.sum(axis=0)
+    return csr_array(m / m.sum(axis=0))
 
 
 def onset_envelopes(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(onset flux over all bands less its moving mean, bass flux below `BASS_HZ`), each [frames] at
-    `ONSET_FPS`. The bass flux is of the bands' magnitude, not its log: a kick or a bass note, not the low end
+    """(onset flux over all bands less its moving mean, bass flux below `BASS_HZ` over its largest), each [frames]
+    at `ONSET_FPS`. The bass flux is of the bands' magnitude, not its log: a kick or a bass note, not the low end
     of a snare's noise."""
-    spec = _spectrogram(x, ONSET_FRAME, SR // ONSET_FPS)
-    freqs = np.fft.rfftfreq(ONSET_FRAME, 1 / SR)
-    bands = spec @ _log_bands(freqs, 30.0, 16000.0)
+    bands = _filtered_spectrogram(x, ONSET_FRAME, SR // ONSET_FPS,
+                                  _log_bands(np.fft.rfftfreq(ONSET_FRAME, 1 / SR), 30.0, 16000.0), 1)
     level = np.log1p(bands / (FLOOR * max(float(np.percentile(bands, 99.9)), 1e-12)))
     rise = np.maximum(np.diff(level, axis=0, prepend=level[:1]), 0.0)
     onset = rise.mean(axis=1)
@@ -180,13 +187,12 @@ def _local_mean(a: np.ndarray, width: int = 25) -> np.ndarray:
 
 def pitch_class_energy(x: np.ndarray) -> np.ndarray:
     """[frames, 12] spectral energy per pitch class (C first) at 10 fps, 55 Hz - 2 kHz."""
-    spec = _spectrogram(x, CHROMA_FRAME, SR // FPS) ** 2
     freqs = np.fft.rfftfreq(CHROMA_FRAME, 1 / SR)
-    use = (freqs >= 55.0) & (freqs <= 2000.0)
+    use = np.flatnonzero((freqs >= 55.0) & (freqs <= 2000.0))
     pitch = np.round(12 * np.log2(freqs[use] / 440.0)).astype(int) + 9  # A = 9 with C = 0
-    fold = np.zeros((int(use.sum()), 12), np.float32)
-    fold[np.arange(len(pitch)), pitch % 12] = 1.0
-    return spec[:, use] @ fold
+    fold = np.zeros((len(freqs), 12), np.float32)
+    fold[use, pitch % 12] = 1.0
+    return _filtered_spectrogram(x, CHROMA_FRAME, SR // FPS, csr_array(fold), 2)
 
 
 def chroma_features(energy: np.ndarray) -> np.ndarray:
@@ -249,13 +255,15 @@ def track_beats(onset: np.ndarray, period: float) -> np.ndarray:
     penalty = -TIGHTNESS * np.log(offsets / period) ** 2
     score = env.copy()
     back = np.full(n, -1)
-    for t in range(lo, n):
-        start = max(0, t - hi)
-        window = score[start : t - lo + 1] + penalty[: t - lo + 1 - start][::-1]
-        k = int(np.argmax(window))
-        if window[k] > 0:
-            score[t] += window[k]
-            back[t] = start + k
+    for start in range(lo, n, lo):  # a block of `lo` frames looks back only to frames before it: one step each
+        t = np.arange(start, min(start + lo, n))
+        source = t[:, None] - offsets[None, :]
+        window = np.where(source >= 0, score[np.maximum(source, 0)] + penalty, -np.inf)
+        k = np.argmax(window, axis=1)
+        best = window[np.arange(len(t)), k]
+        chained = best > 0
+        score[t[chained]] += best[chained]
+        back[t[chained]] = source[chained, k[chained]]
     tail = np.arange(max(0, n - int(round(period))), n)
     t = int(tail[np.argmax(score[tail])])
     path = [t]
@@ -265,24 +273,20 @@ def track_beats(onset: np.ndarray, period: float) -> np.ndarray:
     return beats[(beats >= 0) & (beats < n)]
 
 
-def meter_and_phase(beats: np.ndarray, bass: np.ndarray, chroma: np.ndarray) -> tuple[int, int]:
-    """(beats to the bar, index of the first downbeat among the first beats) from the bass flux and a chroma
-    [frames, 12] at 10 fps (module docstring, step 5)."""
+def meter_and_phase(beats: np.ndarray, chroma: np.ndarray) -> tuple[int, int]:
+    """(beats to the bar, index of the first downbeat among the first beats) from a chroma [frames, 12] at 10 fps
+    (module docstring, step 5)."""
     if len(beats) < 16:
         return 4, 0
-    frames = np.clip(np.round(beats * ONSET_FPS).astype(int), 0, len(bass) - 1)
-    near = np.stack([bass[np.clip(frames + d, 0, len(bass) - 1)] for d in range(-3, 4)]).max(axis=0)
     edges = np.clip(np.round(beats * FPS).astype(int), 0, len(chroma) - 1)
     ends = np.append(edges[1:], len(chroma))
     sync = np.stack([chroma[a : max(b, a + 1)].mean(axis=0) for a, b in zip(edges, ends, strict=True)])
-    best = None
+    best = (-np.inf, 4, 0)
     for meter in (3, 4):
-        accent = BASS_WEIGHT * _standard(near) + _standard(_bar_change(sync, meter))
-        by_phase = np.array([accent[p::meter].mean() for p in range(meter)])
+        change = _standard(_bar_change(sync, meter))
+        by_phase = np.array([change[p::meter].mean() for p in range(meter)])
         phase = int(np.argmax(by_phase))
-        score = by_phase[phase] - np.delete(by_phase, phase).mean()
-        if best is None or score > best[0]:
-            best = (score, meter, phase)
+        best = max(best, (by_phase[phase] - np.delete(by_phase, phase).mean(), meter, phase))
     return best[1], best[2]
 
 
