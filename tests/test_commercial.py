@@ -113,16 +113,25 @@ def test_the_default_mode_opens_them_and_says_so(tmp_path: Path, own_clips: Path
     assert summary["licence"]["mode"] == "non-commercial" and summary["licence"]["commercial_use"] is False
 
 
-def test_a_commercial_batch_opens_no_non_commercial_file(tmp_path: Path, own_clips: Path, waltz_song: Path) -> None:
+def test_a_commercial_batch_opens_no_non_commercial_file(tmp_path: Path, own_clips: Path, waltz_song: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A batch in the commercial mode (its settings), and a list's `commercial` column that asks it of one song of
+    a default batch."""
+    recorded(tmp_path, "library", "build", str(own_clips))
+    run = recorded(tmp_path, "batch", str(waltz_song), "-o", str(tmp_path / "out"), "--jobs", "1", "--commercial",
+                   "--engine", "library", "--library", str(own_clips))
+    assert run["code"] == 0, run["stderr"]
+    assert not non_commercial(run["opened"])
+    summary = json.loads(next((tmp_path / "out").rglob("waltz.json")).read_text())
+    assert summary["licence"]["commercial_use"] is True
     listing = tmp_path / "songs.csv"
     with listing.open("w", newline="") as f:
         csv.writer(f).writerows([["song", "commercial", "engine", "library"],
                                  [str(waltz_song), "yes", "library", str(own_clips)]])
-    recorded(tmp_path, "library", "build", str(own_clips))
-    run = recorded(tmp_path, "batch", str(listing), "-o", str(tmp_path / "out"), "--jobs", "1")
-    assert run["code"] == 0 and not non_commercial(run["opened"])
-    summary = json.loads(next((tmp_path / "out").rglob("waltz.json")).read_text())
-    assert summary["licence"]["commercial_use"] is True
+    monkeypatch.setenv("DANCENET_CACHE", str(CACHE))  # the library built above
+    assert main(["batch", str(listing), "-o", str(tmp_path / "listed"), "--jobs", "1"]) == 0
+    summary = json.loads(next((tmp_path / "listed").rglob("waltz.json")).read_text())
+    assert summary["licence"]["mode"] == "commercial" and summary["licence"]["commercial_use"] is True
 
 
 @pytest.mark.parametrize(("args", "says"), [
