@@ -1,5 +1,5 @@
 """`dancenet batch SONGS... -o OUT`: a catalog of songs danced as `generate` dances one, each into OUT/<song>/,
-in worker processes or on a Ray cluster (`catalog.py` runs them), with OUT/batch.csv and batch.json."""
+in worker processes or on a Ray cluster (the `catalog` package runs them), with OUT/batch.csv and batch.json."""
 
 from __future__ import annotations
 

@@ -9,6 +9,7 @@ import hashlib
 import json
 import os
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -192,15 +193,22 @@ def clip_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.rglob("*") if p.suffix.lower() in CLIP_SUFFIXES and p.is_file())
 
 
-def folder_key(folder: str | Path) -> str:
+def file_sha256(path: Path) -> bytes:
+    """The sha256 digest of a file's bytes."""
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").digest()
+
+
+def folder_key(folder: str | Path, digest: Callable[[Path], bytes] = file_sha256) -> str:
     """A digest of the folder's clips (names relative to it and bytes) and of its manifest: a changed, added or
-    removed clip builds a new library."""
+    removed clip builds a new library, any other file is not the library's. `digest` hashes one file (a song
+    catalog's remembers the digests of files unchanged since)."""
     folder = Path(folder)
     h = hashlib.sha256(LIBRARY_VERSION.encode())
     for p in [*clip_files(folder), folder / "manifest.csv"]:
         if p.is_file():
             h.update(os.fsencode(p.relative_to(folder)) + b"\0")  # bytes: a name need not be UTF-8
-            h.update(hashlib.sha256(p.read_bytes()).digest())
+            h.update(digest(p))
     return h.hexdigest()[:32]
 
 

@@ -24,7 +24,9 @@ import pytest
 import soundfile as sf
 from made_up import music
 
-from dancenet_core.catalog import RECORDS, CatalogSong, _ray_song, _stop, read_catalog, request_id, run_catalog
+from dancenet_core.catalog import RECORDS, CatalogSong, read_catalog, request_id, run_catalog
+from dancenet_core.catalog.cluster import _ray_song
+from dancenet_core.catalog.local import _stop
 from dancenet_core.cli import build_parser, main
 from dancenet_core.commands.batch import GenerateTask
 from dancenet_core.music.audio import MADMOM_SAMPLE_RATE
@@ -156,9 +158,10 @@ def _wait_for(run: subprocess.Popen, out: Path, done: int) -> None:
 
 @dataclass(frozen=True)
 class KilledOn:
-    """The command's own task, but the worker process that takes song `folder` is killed as it begins it (SIGKILL,
-    what the system's out-of-memory killer sends): the kill lands mid-song, the song's folder and begun record
-    made, however fast the machine is. At module level: each spawned worker unpickles it."""
+    """The command's own task, but the worker process that takes song `folder` is killed (SIGKILL, what the
+    system's out-of-memory killer sends) as it renames the song's first file into place: the kill lands
+    mid-song, its record begun and its files written under their temporary names, however fast the machine is.
+    At module level: each spawned worker unpickles it."""
 
     task: GenerateTask
     folder: str
@@ -171,7 +174,14 @@ class KilledOn:
 
     def __call__(self, song: CatalogSong, folder: Path) -> dict[str, Any]:
         if song.folder == self.folder:
-            os.kill(os.getpid(), signal.SIGKILL)
+            rename = os.replace
+
+            def killed_on_rename(source: str | Path, target: str | Path) -> None:
+                if Path(source).parent == folder and TEMP_MARK in Path(source).name:
+                    os.kill(os.getpid(), signal.SIGKILL)
+                rename(source, target)
+
+            os.replace = killed_on_rename  # this worker's alone: it is killed with this song
         return self.task(song, folder)
 
 
@@ -189,7 +199,7 @@ def test_a_killed_worker_fails_its_song_only_and_the_rerun_finishes_the_missing_
     assert rows[BAD]["status"] == "failed" and "cannot decode" in rows[BAD]["error"]
     done_first = {n for n, r in rows.items() if r["status"] == "done"}
     assert done_first == {f"song {k:02d}.wav" for k in range(GOOD)} - {"song 01.wav"}
-    assert [p.name for p in (out / "song_01").iterdir()] == []  # nothing under a final name
+    assert [p.name for p in (out / "song_01").iterdir()] == []  # no final name, no temporary file left
     assert main(command) == 1  # the same command again
     assert f"1 danced, {GOOD - 1} already done, 1 failed" in capsys.readouterr().out
     status = _status(out)
@@ -227,12 +237,19 @@ def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted
     assert not any(TEMP_MARK in p.name for p in (out / RECORDS).iterdir())
 
 
+def _interrupt_as_a_terminal_sends_it() -> None:
+    """In the batch's process: SIGINT back to its default action. A suite started in the background by a shell
+    without job control (`make test &` in a script) ignores SIGINT, and the batch would inherit that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
 def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: Path, reference: dict,
                                                                        tmp_path: Path) -> None:
     out = tmp_path / "out"
     run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+                           stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           preexec_fn=_interrupt_as_a_terminal_sends_it)
     _wait_for(run, out, 1)
     workers = _children(run.pid)
     os.killpg(run.pid, signal.SIGINT)  # what Ctrl-C in its terminal sends
@@ -317,15 +334,43 @@ def test_a_bad_csv_is_one_line(text: str, says: str, tmp_path: Path, capsys: pyt
     assert not (tmp_path / "out").exists()
 
 
+def _distinct(name: str, kind: type, choices: tuple) -> tuple[str, Any]:
+    """A cell for the setting `name` and the value it must give, distinct from every other setting's."""
+    if choices:
+        cell = choices[-1][0]
+        return cell, kind(cell)
+    number = 10 + sorted(n for n, _d, o in options() if o.flag).index(name)  # each setting its own number
+    if kind is bool:  # the switches (on by default): every other one turned off
+        switches = [n for n, _d, o in options() if o.flag and o.kind is bool]
+        return ("no", False) if switches.index(name) % 2 == 0 else ("yes", True)
+    cells = {int: str(number), float: f"{number}.5", str: f"value-{name}"}
+    if kind in cells:
+        return cells[kind], kind(cells[kind])
+    return None, None
+
+
 def test_every_request_option_is_a_csv_column(tmp_path: Path) -> None:
-    columns = [o.flag.lstrip("-").removeprefix("no-") for _n, _d, o in options() if o.flag]
+    """Each column's own value lands in its own setting (a column read into another field fails)."""
+    columns, cells, want = [], [], {}
+    for name, _default, o in options():
+        if not o.flag:
+            continue
+        column = o.flag.lstrip("-").removeprefix("no-")
+        cell, value = _distinct(name, o.kind, o.choices)
+        if name in ("library", "weights"):
+            cell, value = f"{column}-folder", tmp_path / f"{column}-folder"
+            value = value if o.kind is Path else str(value)
+        elif cell is None:  # a setting of its own syntax (--section): its own test
+            continue
+        columns.append(column)
+        cells.append(cell)
+        want[name] = value
     listing = tmp_path / "all.csv"
-    rows = [["song", *columns], ["x.wav", *([""] * len(columns))],
-            ["y.wav", *("no" if c == "footfix" else "" for c in columns)]]
+    rows = [["song", *columns], ["x.wav", *([""] * len(columns))], ["y.wav", *cells]]
     listing.write_text("".join(",".join(row) + "\n" for row in rows))
     first, second = read_catalog([listing])
-    assert (first.settings, second.settings) == ({}, {"footfix": False})
-    assert first.path == tmp_path / "x.wav"
+    assert first.settings == {} and first.path == tmp_path / "x.wav"
+    assert second.settings == want
 
 
 def test_lists_folders_and_names(songs: Path, tmp_path: Path) -> None:

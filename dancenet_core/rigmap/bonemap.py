@@ -2,13 +2,14 @@
 
 A map is {"name": ..., "description": ..., "bones": {"<SMPL-X joint>": "<bone>", ...}}. Joints left out
 of a map, and optional joints whose bone the armature lacks, are simply not driven; the joints in
-`rigdef.REQUIRED_JOINTS` and one of `rigdef.SPINE_JOINTS` must resolve or the dance could not read as a dance
+`REQUIRED_JOINTS` and one of `SPINE_JOINTS` must resolve or the dance could not read as a dance
 (a spine bone a rig lacks has its turn spread over those it has). Auto goes by names first and
 by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import sys
@@ -20,15 +21,27 @@ from pathlib import Path
 from dancenet_core.errors import DanceNetError, first_line
 from dancenet_core.skeleton import JOINT_NAMES
 
-from .rigdef import REQUIRED_JOINTS, SPINE_JOINTS
 from .shapemap import BODY_JOINTS, RestBone, match_shape
 
 MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
     "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
     "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "MMD": "mmd.json",
-    "GENERIC": "generic.json",
+    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "XSENS": "xsens.json", "MOTIVE": "motive.json",
+    "CMU": "cmu.json", "GENERIC": "generic.json",
 }  # fmt: skip
+
+# Joints a bone map must name (and the rig must have) for a dance to read as that dance.
+REQUIRED_JOINTS: tuple[str, ...] = (
+    "pelvis", "neck", "head",
+    "left_hip", "left_knee", "left_ankle", "right_hip", "right_knee", "right_ankle",
+    "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
+)  # fmt: skip
+
+# The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
+# count of spine bones; the dance's turn of those a rig lacks is spread over those it has (the add-on's
+# retarget.retarget; `jointmap.armature_pose` when a clip is read).
+SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
 
 
 @dataclass
@@ -38,11 +51,14 @@ class BoneMap:
     by_shape: frozenset[str] = frozenset()  # joints Auto found by the skeleton's shape, not by a name
 
 
+@functools.lru_cache(maxsize=65536)  # Auto compares every bone's name with every map's, for every clip of a library
 def name_key(name: str) -> tuple[str, str]:
     """(side "l"/"r"/"", body part) of a bone name, for names that differ only in how they write the side,
     case, width and separators: thigh.L, Thigh_L, LeftThigh, L_Thigh, lThigh (DAZ) all give ("l", "thigh"), and
-    MMD's 左足ＩＫ, 足IK.L (MMD Tools' side suffixes) give ("l", "足ik")."""
+    MMD's 左足ＩＫ, 足IK.L (MMD Tools' side suffixes) give ("l", "足ik"); a suffix that only says it is a joint
+    (DeepMotion's l_upleg_JNT, a _bind or _joint) is left out."""
     local = unicodedata.normalize("NFKC", name.rsplit(":", 1)[-1])
+    local = re.sub(r"(?i)(?<=.)[._\- ](jnt|joint|bind)$", "", local)
     side, rest = "", local
     if m := re.match(r"^([左右])(.+)$", local):
         side, rest = "l" if m[1] == "左" else "r", m[2]
@@ -180,7 +196,7 @@ def closest(bone_names: Iterable[str], saved: Path | None = None) -> BoneMap:
 
 def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) -> BoneMap:
     """By names: the map that resolves every required joint and the most bones in all, among the user's
-    saved maps in `saved` (first, so they win a tie) and the shipped ones (Auto, `auto`, starts from it)."""
+    saved maps in `saved` (first, so they win a tie) and the shipped ones (Auto, `auto_map`, starts from it)."""
     names = list(bone_names)
     best: tuple[int, BoneMap] | None = None
     for candidate in [*user_maps(saved), *(load_shipped(key) for key in SHIPPED)]:
@@ -198,7 +214,8 @@ def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) 
     return best[1]
 
 
-def auto(bones: Sequence[RestBone], armature: str, saved: Path | None = None, own: BoneMap | None = None) -> BoneMap:
+def auto_map(bones: Sequence[RestBone], armature: str, saved: Path | None = None,
+             own: BoneMap | None = None) -> BoneMap:
     """For Auto: the map the rig carries (`own`: the VRM add-on's assignments) if it fits, since the user (or the
     importer) said which bone is which; else the name map that fits best (`detect`, else `closest`), with the
     body joints its names leave out found by the skeleton's shape, so a rig whose bone names follow no rule
