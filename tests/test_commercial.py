@@ -122,7 +122,7 @@ def test_a_commercial_batch_opens_no_non_commercial_file(tmp_path: Path, own_cli
                    "--engine", "library", "--library", str(own_clips))
     assert run["code"] == 0, run["stderr"]
     assert not non_commercial(run["opened"])
-    summary = json.loads(next((tmp_path / "out").rglob("waltz.json")).read_text())
+    summary = json.loads((tmp_path / "out" / "waltz" / "waltz.json").read_text())
     assert summary["licence"]["commercial_use"] is True
     listing = tmp_path / "songs.csv"
     with listing.open("w", newline="") as f:
@@ -130,7 +130,7 @@ def test_a_commercial_batch_opens_no_non_commercial_file(tmp_path: Path, own_cli
                                  [str(waltz_song), "yes", "library", str(own_clips)]])
     monkeypatch.setenv("DANCENET_CACHE", str(CACHE))  # the library built above
     assert main(["batch", str(listing), "-o", str(tmp_path / "listed"), "--jobs", "1"]) == 0
-    summary = json.loads(next((tmp_path / "listed").rglob("waltz.json")).read_text())
+    summary = json.loads((tmp_path / "listed" / "waltz" / "waltz.json").read_text())
     assert summary["licence"]["mode"] == "commercial" and summary["licence"]["commercial_use"] is True
 
 

@@ -13,7 +13,7 @@ from test_library import dancer, song
 
 from dancenet_core.bvh import write_bvh
 from dancenet_core.commands.library import clip_table
-from dancenet_core.floor import floor_track, lowest_point
+from dancenet_core.shaping.floor import floor_track, lowest_point
 from dancenet_core.generate import shape_take
 from dancenet_core.library.analysis import MIN_READ_S, analyze_clip
 from dancenet_core.library.build import build_library
