@@ -13,7 +13,6 @@ from test_library import dancer, song
 
 from dancenet_core.bvh import write_bvh
 from dancenet_core.commands.library import clip_table
-from dancenet_core.generate import shape_take
 from dancenet_core.library.analysis import MIN_READ_S, analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import choreograph, clip_usage
@@ -21,6 +20,7 @@ from dancenet_core.library.loops import around_loop, loop_period
 from dancenet_core.library.store import MotionLibrary
 from dancenet_core.motion import Motion
 from dancenet_core.shaping.floor import floor_track, lowest_point
+from dancenet_core.shaping.takes import shape_take
 from dancenet_core.skeleton import BODY_JOINTS, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0

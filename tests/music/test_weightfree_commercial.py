@@ -42,7 +42,7 @@ def test_beats_tempo_and_downbeats_of_made_up_songs(spec: SongSpec) -> None:
     assert a.tempo_bpm == pytest.approx(spec.bpm, rel=0.04)  # the octave right
     assert f_measure(a.beat_times, beats) > 0.9
     assert f_measure(a.downbeat_times, downbeats) > 0.8  # 3 or 4 beats to the bar, and where the bar starts
-    assert 0.0 <= a.features.min() and a.features.max() <= 1.0
+    assert a.features.min() >= 0.0 and a.features.max() <= 1.0
 
 
 def test_same_columns_another_spec() -> None:
