@@ -90,8 +90,8 @@ def run(args: argparse.Namespace) -> int:
             "form": form.to_dict(),
             "features": {"shape": list(analysis.features.shape), "fps": analysis.fps},
             "seconds": round(elapsed, 2),
-            "licence": licence_block([analysis_part(args.commercial), *([] if model is None else ["style_classifier"])],
-                                     args.commercial),
+            "licence": licence_block([analysis_part(args.commercial),
+                                      "style_by_tempo" if model is None else "style_classifier"], args.commercial),
         }
         try:
             write_text(args.json, json.dumps(out, indent=1, allow_nan=False) + "\n")
