@@ -71,6 +71,15 @@ def _draw_library_build(layout: bpy.types.UILayout, props: bpy.types.PropertyGro
     row.label(text=text, icon=icon)
 
 
+def _draw_commercial(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) -> None:
+    """What Commercial Use needs (`dancenet_core.request.check_commercial`): the Motion Library engine on clips of
+    one's own; no library that may be used commercially ships with the add-on (docs/licence.md)."""
+    if props.engine != "library":
+        layout.label(text="Commercial Use dances with the Motion Library engine", icon="ERROR")
+    elif props.library_source == "FOLDER" and library.chosen_folder(props) is None:
+        layout.label(text="Commercial Use needs a library of your own clips", icon="ERROR")
+
+
 def _draw_frame_rate(layout: bpy.types.UILayout, render: bpy.types.RenderSettings) -> None:
     """The scene's frame rate as Blender keeps it, frames per `fps_base` seconds (30000 / 1001 = 29.97): the dance
     is resampled to that true rate."""
@@ -173,6 +182,8 @@ class _Dance(_SubPanel):
                 _draw_library_build(col, props)
                 continue
             col.prop(props, name)
+        if props.commercial:
+            _draw_commercial(col, props)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)
         col.prop(props, "use_part")

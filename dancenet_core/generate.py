@@ -22,9 +22,11 @@ from .constants import MIN_PART_S
 from .engines import Engine, Takes, get_engine
 from .environment import one_blas_thread
 from .errors import DanceNetError, GenerationCancelled
+from .licence import analysis_part, licence_block
 from .motion import Motion
 from .music.features import MusicAnalysis, analyze_music
 from .music.form import Section, SongForm, song_form
+from .music.weightfree import analyze_music_weightfree
 from .progress import StageProgress
 from .request import DEFAULT_ENGINE, MAX_SEED, MAX_TAKES, DanceRequest
 from .shaping.continuation import DIFFERENCES
@@ -47,6 +49,7 @@ class GenerationResult:
     start_s: float = 0.0  # where the dance starts in the song; beat times count from there
     details: list[dict] = field(default_factory=list)  # per take, the engine's report on it (`Takes.details`)
     form: SongForm | None = None  # the song's sections (times in the song, not the part)
+    licence: dict = field(default_factory=dict)  # the parts that made it and their terms (`licence.licence_block`)
 
 
 def check_request(request: DanceRequest) -> Engine:
@@ -77,7 +80,7 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
 
     t = time.perf_counter()
     report("analysing music", 0.0)
-    analysis = analyze_music(request.song, progress=lambda f: report("analysing music", f))
+    analysis = analyze(request.song, request.commercial, progress=lambda f: report("analysing music", f))
     analysis_s = time.perf_counter() - t
     if cancelled():
         raise GenerationCancelled
@@ -104,7 +107,16 @@ def generate_dance(request: DanceRequest, progress: StageProgress | None = None,
         style=takes.style, style_probabilities=takes.style_probabilities,
         timings={"analysis_s": analysis_s, **takes.timings}, contacts=takes.contacts, start_s=start,
         details=takes.details, form=form,
+        licence=licence_block([analysis_part(request.commercial), *takes.parts], request.commercial),
     )
+
+
+def analyze(song: Path, commercial: bool, progress: Callable[[float], None] | None = None) -> MusicAnalysis:
+    """The song's analysis (cached): the default one (madmom's networks), or in the commercial mode the one from
+    signal processing alone (`music.weightfree`)."""
+    if commercial:
+        return analyze_music_weightfree(song, progress=progress)
+    return analyze_music(song, progress=progress)
 
 
 def section_named(form: SongForm, name: str, part: tuple[float, float]) -> Section:
@@ -162,6 +174,7 @@ def _with_sections(engine: Engine, takes: Takes, form: SongForm, analysis: Music
             sub = replace(request, style=o.style or request.style, energy=o.energy or request.energy,
                           seed=(request.seed + 1 + MAX_TAKES * i + k) % (MAX_SEED + 1))
             new = _section_anew(engine, analysis, sub, motion, section, part, report, cancelled)
+            takes.parts = list(dict.fromkeys([*takes.parts, *new.parts]))
             takes.motions[k] = new.motions[0]
             if k < len(takes.details) and new.details and "danced_figures" in new.details[0]:
                 takes.details[k]["danced_figures"] = spliced(takes.details[k]["danced_figures"],

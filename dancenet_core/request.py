@@ -177,6 +177,10 @@ class DanceRequest:
     library: Path | None = _option(None, Option(
         "a folder of BVH clips built with `dancenet library build` (default: the shipped CMU dance clips), for "
         "--engine library", Path, "--library", "Library", metavar="FOLDER"))
+    commercial: bool = _option(False, Option(
+        "make a dance a studio may use: only parts whose terms allow commercial use run (the weight-free music "
+        "analysis, the motion library engine on a library of your own clips; docs/licence.md)", bool,
+        "--commercial", "Commercial Use"))
 
     def check(self) -> None:
         """Reject what no engine can dance, whatever the song: a one-line DanceNetError that says what to do."""
@@ -208,6 +212,8 @@ class DanceRequest:
                                         f"of: {', '.join(allowed)}")
         if len({o.section for o in self.sections}) < len(self.sections):
             raise DanceNetError("a section is given settings twice: give each section once (--section)")
+        if self.commercial:
+            check_commercial(self)
         if self.redo_section is not None and self.continue_from is None:
             raise DanceNetError("dancing one section anew needs the dance it belongs to (continue_from)")
         if self.continue_from is not None and not 0 < self.at_s <= self.continue_from.duration:
@@ -232,6 +238,20 @@ class DanceRequest:
             raise DanceNetError(f"start {self.start_s:g} s leaves less than {MIN_PART_S:g} s of the song to dance "
                                 f"(the song lasts {duration_s:.1f} s)")
         return self.start_s, end
+
+
+def check_commercial(request: DanceRequest) -> None:
+    """A one-line error for a part the commercial mode leaves out (`licence.py` says why each is left out)."""
+    if request.engine != "library":
+        raise DanceNetError("commercial use: DanceNet was trained on Dance with Melody, which grants no licence; "
+                            "dance with --engine library --library FOLDER (a library of clips you may use)")
+    if request.weights is not None:
+        raise DanceNetError("commercial use: --weights are trained weights, which the commercial mode does not load; "
+                            "leave --weights out")
+    if request.library is None:
+        raise DanceNetError("commercial use: the shipped CMU library was built from AMASS conversions "
+                            "(non-commercial); give --library FOLDER, clips of your own built with "
+                            "`dancenet library build FOLDER`")
 
 
 def check_part(start_s: float, end_s: float | None) -> None:

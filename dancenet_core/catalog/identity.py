@@ -94,9 +94,10 @@ def request_id(song: CatalogSong, task: SongTask, digests: Digests | None = None
 def weights_identity(settings: dict[str, Any], digests: Digests | None = None) -> list[str]:
     """Digests of the files a request may read to dance: the shipped weights and library, the weights file it
     names and the library folder's clips and manifest (a missing one counts as missing: its engine says so when
-    the song runs)."""
+    the song runs). The commercial mode reads none of the shipped files, and opens none for this either."""
     digests = digests or Digests()
-    described = [digests.described(p) for p in sorted(WEIGHTS_DIR.glob("*.npz"))]
+    shipped = [] if settings.get("commercial") else sorted(WEIGHTS_DIR.glob("*.npz"))
+    described = [digests.described(p) for p in shipped]
     if settings.get("weights"):
         described.append(digests.described(settings["weights"]))
     if settings.get("library"):

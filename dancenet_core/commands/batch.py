@@ -37,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="audio files, folders of them (subfolders included), or song lists: a text file with a "
                         "path a line, or a CSV with a 'song' column and a column per setting to change for that "
                         "song (style, seed, start, end, engine, library, temperature, takes, energy, fps, "
-                        "root-motion, weights, footfix); paths relative to the list")
+                        "root-motion, weights, footfix, commercial); paths relative to the list")
     p.add_argument("-o", "--out", type=Path, required=True,
                    help="output folder: OUT/<song>/ as `dancenet generate` writes it, OUT/batch.csv and batch.json")
     add_options(p, {"style": "auto (each song's style) or a style the engine knows, for every song"})

@@ -15,7 +15,7 @@ from tqdm import tqdm
 from ..atomic import remove_leftovers, write_text
 from ..bvh import write_bvh
 from ..errors import DanceNetError
-from ..generate import GenerationResult, generate_dance
+from ..generate import GenerationResult, analyze, generate_dance
 from ..outputs import check_folder_writable, claimed_outputs, refuse_overwrite, safe_stem
 from ..progress import StageProgress
 from ..render import render_motion
@@ -28,8 +28,9 @@ from ..shaping.takes import shape_takes
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("song", type=Path, help="audio file: wav, flac, ogg, mp3 or opus")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (created if missing)")
+    p.formatter_class = _StylesInHelp
     add_options(p, {"style": f"auto (the music's style) or a style the model knows; the shipped one: "
-                             f"{_shipped_styles()}"})
+                             f"{_StylesInHelp.SHIPPED}"})
     p.add_argument("--continue", dest="continue_from", type=Path, default=None, metavar="BVH",
                    help="keep this dance (a BVH from `dancenet generate` for the same song and --start) up to "
                         "--at and dance the rest anew after it")
@@ -41,6 +42,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "dance, the sections marked)")
     p.add_argument("--overwrite", action="store_true", help="replace outputs already in the folder")
     p.set_defaults(handler=run)
+
+
+class _StylesInHelp(argparse.HelpFormatter):
+    """Names the shipped model's styles in --help when the help is printed, not whenever the parser is built: a
+    commercial run opens no trained weights, not even to list their styles."""
+
+    SHIPPED = "<shipped styles>"
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = super()._get_help_string(action) or ""
+        return text.replace(self.SHIPPED, _shipped_styles()) if self.SHIPPED in text else text
 
 
 def _shipped_styles() -> str:
@@ -138,12 +150,11 @@ def dance_into(args: argparse.Namespace, request: DanceRequest, stem: str, progr
 def _form_plot(path: Path, request: DanceRequest, result: GenerationResult) -> None:
     """The song's form beside the first take's (`evaluation.form.form_figure`)."""
     from ..evaluation.form import form_figure  # matplotlib: only for this figure
-    from ..music.features import analyze_music
     from ..representation import heading_frames
 
     motion = result.motions[0]
     labels = " ".join(s.name for s in result.form.sections)
-    form_figure(path, analyze_music(request.song), motion.positions(), heading_frames(motion), motion.fps,
+    form_figure(path, analyze(request.song, request.commercial), motion.positions(), heading_frames(motion), motion.fps,
                 result.form, result.start_s, f"{Path(request.song).name}: {labels} (returns: {request.returns})")
 
 
@@ -203,6 +214,7 @@ def _write(args: argparse.Namespace, request: DanceRequest, stem: str, result: G
         "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
         "takes_details": result.details,  # per take, the engine's report (the library engine: the copied runs)
         "files": files,
+        "licence": result.licence,  # the parts that made the dance and their terms: may a studio use it?
     }
     write_text(temp[args.out / f"{stem}.json"], json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return summary

@@ -27,6 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--force", action="store_true", help="build again even when this content was built before")
     b.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="clips read side by side (default: $DANCENET_WORKERS or 2)")
+    b.add_argument("--commercial", action="store_true",
+                   help="say what a commercial use of this library needs (the build itself uses no trained weights "
+                        "in either mode; docs/licence.md)")
     b.set_defaults(handler=_cmd_build)
 
 
@@ -64,6 +67,10 @@ def _cmd_build(args: argparse.Namespace) -> int:
           f"({int(library.downbeat.sum())} bars); tempo {np.min(library.tempo_bpm):.0f}-"
           f"{np.max(library.tempo_bpm):.0f} BPM; clips by meter {meters}; styles: {', '.join(styles)}; "
           f"{len(library.notes)} left out; {time.perf_counter() - t:.1f} s -> {path}")
+    if args.commercial:
+        print(f"commercial use: `dancenet generate SONG --commercial --engine library --library {args.folder}` "
+              "dances these clips with no non-commercial part (no style classifier, no learned match); the clips' "
+              "own terms are yours to check")
     return 0
 
 

@@ -45,6 +45,7 @@ class Takes:
     timings: dict[str, float] = field(default_factory=dict)  # seconds per stage, for the summary
     # Per take, what the engine reports about it for the summary (the library engine: how much is copied), or empty.
     details: list[dict] = field(default_factory=list)
+    parts: list[str] = field(default_factory=list)  # what made them beside the music analysis (`licence.PARTS`)
 
 
 class Engine(Protocol):

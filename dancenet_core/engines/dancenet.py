@@ -225,4 +225,6 @@ class DanceNetEngine:
             motions = [join_kept(kept, f, prefix.shape[1], bundle.skeleton) for f in takes_feats]
         contacts = [f[:, layout.contacts] for f in takes_feats]
         timings["decode_s"] = time.perf_counter() - t
-        return Takes(motions, chosen, probs, contacts, timings)
+        parts = ["dancenet_weights", *(["style_classifier"] if probs else ["chosen_style"]),
+                 *(["foot_model"] if request.footfix and FOOT_CLEANUP in ("model", "model+lock") else [])]
+        return Takes(motions, chosen, probs, contacts, timings, parts=parts)

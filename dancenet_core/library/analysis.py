@@ -38,10 +38,11 @@ captures stretched against their songs (three cha-chas by the data's own 25-fps 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.signal import correlate, fftconvolve
 
 from ..beats import BAS_SMOOTH_S, kinematic_velocity, local_minima
 from ..kinematics import fk_numpy
@@ -70,6 +71,7 @@ LAG_WEIGHTS = {"dips": ((1, 0.2), (2, 0.2)), "feet": ((1, 0.3), (2, 0.3), (3, -0
                "height": ((1, 0.05), (3, -0.1))}
 BAR_LAG_WEIGHTS = {"feet": 0.05}  # the feet's speed after one bar of the meter read
 PRIOR_BPM, PRIOR_WEIGHT = 110.0, 0.3  # a slight preference for tempi near 110 BPM, between equal readings
+FALLBACK_METER = 4  # the meter assumed for a clip too short to read when no clip of the library is long enough
 # The pelvis's rise and fall once a bar (its height's autocorrelation after a bar less after half a bar) beyond
 # which a reading is taken at half its tempo: 0.72-1.47 for the 31 waltzes read at twice their songs' tempo, at most
 # 0.67 for the 4/4 dances (0 for a body that bobs once a beat); chosen on the training split, used for the octave
@@ -78,6 +80,10 @@ RISE_FALL = 0.7
 HEIGHT_TREND_S = 2.0  # the pelvis's slow drift (a capture's floor creeping up, a dip): removed from its height
 CANDIDATES = 600  # beat periods tried, evenly in log tempo between MIN_BPM and MAX_BPM
 UNSURE = 0.25  # a confidence under this: `library build` names the clip (give its tempo and meter in the manifest)
+# A clip shorter than this, or than READ_BARS bars at the tempo read from it, is too short for its tempo to be read
+# (the pose has to come back after a bar, and again): it takes the library's tempo (`with_assumed_tempi`).
+MIN_READ_S = 4.0
+READ_BARS = 2
 OCTAVE_TOLERANCE = 0.08  # a period within 8% of the best's half, whole or double is the same tempo for the plan
 POSE_DIM = BODY_JOINTS * 3
 LEG_JOINTS = [i for i, n in enumerate(JOINT_NAMES[:BODY_JOINTS])
@@ -151,8 +157,8 @@ def _rms_after(x: np.ndarray, y: np.ndarray, max_lag: int) -> np.ndarray:
     """[max_lag]: for each lag L (frames), the RMS over t of |x_t - y_{t+L}| (x, y [T, D], centred alike). Per
     dimension through the FFT, so a long clip costs about as much as reading it."""
     n = len(x)
-    cross = np.fft.irfft(np.conj(np.fft.rfft(x, 2 * n, axis=0)) * np.fft.rfft(y, 2 * n, axis=0),
-                         axis=0)[:max_lag].sum(axis=1)
+    # sum over t and dimensions of x_t . y_{t+L}: x reversed in time, convolved with y, at lag L
+    cross = fftconvolve(x[::-1], y, axes=0)[n - 1 : n - 1 + max_lag].sum(axis=1)
     sx = np.concatenate([[0.0], np.cumsum((x**2).sum(axis=1))])
     sy = np.concatenate([[0.0], np.cumsum((y**2).sum(axis=1))])
     lags = np.arange(max_lag)
@@ -182,8 +188,8 @@ def _autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
     """[max_lag] normalised autocorrelation (1 at lag 0), unbiased."""
     n = len(x)
     x = x - x.mean()
-    f = np.fft.rfft(x, 2 * n)
-    ac = np.fft.irfft(f * np.conj(f))[:max_lag] / np.maximum(n - np.arange(max_lag), 1)
+    ac = correlate(x, x, mode="full", method="fft")[n - 1 : n - 1 + max_lag]
+    ac = np.pad(ac / np.maximum(n - np.arange(len(ac)), 1), (0, max_lag - len(ac)))  # lags past the clip: 0
     return ac / max(float(ac[0]), 1e-12)
 
 
@@ -344,6 +350,46 @@ def analyze_clip(motion: Motion, style: str = "", beat_times: np.ndarray | None 
     if bpm is not None and beat_times is None:
         tempo = float(bpm)  # the user's word, whatever the steps' spacing
     return ClipAnalysis(beats, downbeat, tempo, meter, feats[at], energy.astype(np.float32), confidence, source)
+
+
+def too_short(seconds: float, analysis: ClipAnalysis) -> bool:
+    """Whether a clip of `seconds` is too short for the tempo read from its motion to stand (`MIN_READ_S`,
+    `READ_BARS`); a tempo given by the user or the clip's music always stands."""
+    if not analysis.source.startswith("tempo: motion") or analysis.tempo_bpm <= 0:
+        return False
+    return seconds < max(MIN_READ_S, READ_BARS * analysis.meter * 60.0 / analysis.tempo_bpm)
+
+
+def with_assumed_tempi(clips: list[tuple[str, str, Motion, ClipAnalysis]]
+                       ) -> list[tuple[str, str, Motion, ClipAnalysis]]:
+    """The clips (name, style, motion, analysis), each one too short for its tempo to be read (`too_short`)
+    analysed again at the library's tempo: the median over the clips long enough to read, weighted by their
+    length (`PRIOR_BPM` when none is), and the meter its style names or else the library's commonest; its source
+    says "assumed" and its confidence is 0, so `library build` names it among the clips to check. A dancer's clip of
+    a few seconds holds too few bars to tell its tempo from its motion, but its steps still fall on beats: laid at
+    the library's tempo, the plan plays it within its speed limit like any other clip."""
+    short = [too_short(m.duration, a) for _, _, m, a in clips]
+    read = [(a.tempo_bpm, a.meter, m.duration) for (_, _, m, a), s in zip(clips, short, strict=True) if not s]
+    if not any(short):
+        return clips
+    if read:
+        tempi, meters, weights = (np.array(x, np.float64) for x in zip(*read, strict=True))
+        order = np.argsort(tempi)
+        half = np.searchsorted(np.cumsum(weights[order]), weights.sum() / 2)
+        bpm = float(tempi[order][min(half, len(order) - 1)])
+        meter = int(max(set(meters.tolist()), key=lambda m: weights[meters == m].sum()))
+        why = f"the library's {bpm:.0f} BPM"
+    else:
+        bpm, meter, why = PRIOR_BPM, FALLBACK_METER, f"{PRIOR_BPM:.0f} BPM, no clip long enough to read"
+    out = []
+    for (name, style, motion, a), s in zip(clips, short, strict=True):
+        if s:
+            told = STYLE_METER.get(style.strip().lower(), meter)
+            again = analyze_clip(motion, style, bpm=bpm, meter=told)
+            bars = f"style ({style.strip()})" if style.strip().lower() in STYLE_METER else "assumed"
+            a = replace(again, confidence=0.0, source=f"tempo: assumed ({why}; too short to read), meter: {bars}")
+        out.append((name, style, motion, a))
+    return out
 
 
 def _source(bpm: float | None, meter: int | None, style: str) -> str:

@@ -63,7 +63,7 @@ def _as_clip(motion: Motion, name: str) -> Motion:
     motion = motion.resampled(LIBRARY_FPS)
     if motion.duration < MIN_CLIP_S:
         raise DanceNetError(f"{name}: {motion.duration:.2f} s, too short to hold a bar")
-    motion.root_positions[:, 1] -= floor_track(motion)
+    motion.root_positions[:, 1] -= floor_track(motion, body=True)  # floor work (hands, back) stays on the floor
     return motion
 
 

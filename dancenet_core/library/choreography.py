@@ -27,6 +27,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 
@@ -58,6 +59,7 @@ LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer 
 DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
 PHRASE_TOLERANCE_S = 0.1  # a grid bar and a bar of the song's form that start this close are one bar
+START_DECIMALS = 6  # figure starts between two clip beats are rounded to this many decimals of a beat
 
 
 @dataclass(frozen=True)
@@ -117,10 +119,23 @@ class Report:
     max_warp: float = 0.0  # largest real-time warp of a beat, as a fraction (0.1: 10% slower or faster than captured)
 
     def summary(self) -> dict:
-        return {"figures": len(self.figures), "cuts": len(self.cuts), "long_run_bars": LONG_RUN_BARS,
+        return clip_usage(self.figures) | {
+                "figures": len(self.figures), "cuts": len(self.cuts), "long_run_bars": LONG_RUN_BARS,
                 "long_run_share": round(self.long_run_share, 4), "longest_run_bars": self.longest_run_bars,
                 "longest_run_s": round(self.longest_run_s, 2), "max_warp": round(self.max_warp, 4),
                 "max_cut_step": round(max(self.cut_steps, default=0.0), 3)}
+
+
+def clip_usage(figures: list[dict]) -> dict:
+    """How many distinct clips a dance's figures (`Report.figures` rows) use and how evenly: `effective_clips` is
+    the exponential of the entropy of the seconds danced per clip (N for N clips danced equally long, near 1 for a
+    dance that stays with one clip)."""
+    seconds: dict[str, float] = {}
+    for f in figures:
+        seconds[f["clip"]] = seconds.get(f["clip"], 0.0) + f["song_s"][1] - f["song_s"][0]
+    share = np.array(list(seconds.values()))
+    share = share[share > 0] / max(share.sum(), 1e-9)
+    return {"clips": len(seconds), "effective_clips": round(float(np.exp(-(share * np.log(share)).sum())), 2)}
 
 
 @dataclass
@@ -204,29 +219,52 @@ def clip_ibi_s(library: MotionLibrary) -> np.ndarray:
 def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tuple[np.ndarray, np.ndarray]:
     """The figures the plan chooses from: (start beat, clip beats per song beat) pairs. Each clip is tried at the
     ratios (`RATIOS`) that play its median beat near its captured speed on the song's median beat, at least at its
-    nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar."""
+    nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar. Where a ratio
+    lays a fraction of a beat on a bar (2/3 of a clip beat per song beat on a 4/4 bar: 8/3), the figure that carries
+    on from one starts where it ends, between two clip beats (`START_DECIMALS`), so that a clip danced at that ratio
+    is not cut every bar."""
     song_ibi = float(np.median(np.diff(grid.beats))) if len(grid.beats) > 1 else 60.0 / DEFAULT_BPM
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(np.log(np.array(RATIOS)[None, :] * clip_ibi_s(library)[:, None] / song_ibi))
     off = np.nan_to_num(off, nan=np.inf, posinf=np.inf)
     tried = (off <= np.log1p(WARP_RANGE) + RATIO_MARGIN) | (off == off.min(axis=1, keepdims=True))
+    in_range = off <= np.log1p(WARP_RANGE)
     starts, ratios = [], []
     for k, r in enumerate(RATIOS):
         span = r * grid.meter
-        every = int(round(span)) if r < 1 and abs(span - round(span)) < 1e-9 else None
-        s = figure_starts(library, grid.meter, style, every)
-        s = s[tried[library.beat_clip[s], k]]
+        whole = abs(span - round(span)) < 1e-9
+        every = int(round(span)) if r < 1 and whole else None
+        s = figure_starts(library, grid.meter, style, every).astype(np.float64)
+        if not whole:  # a fraction of a beat a bar: the bars in between start between two beats, for the clips
+            # the ratio plays within the speed limit (the others dance it only where nothing else fits)
+            turns = Fraction(span).limit_denominator(6).denominator
+            fit = s[in_range[library.beat_clip[s.astype(np.int64)], k]]
+            s = np.concatenate([s, (fit[:, None] + span * np.arange(1, turns)[None]).ravel()])
+            s = s[np.ceil(s) < len(library.beats)]
+            s = s[library.beat_clip[np.ceil(s).astype(np.int64)] == library.beat_clip[np.floor(s).astype(np.int64)]]
+        s = np.round(s, START_DECIMALS)
+        s = s[tried[library.beat_clip[np.floor(s).astype(np.int64)], k]]
         starts.append(s)
         ratios.append(np.full(len(s), r))
     return np.concatenate(starts), np.concatenate(ratios)
+
+
+def beat_index(position: np.ndarray) -> np.ndarray:
+    """The library beat at or before each (maybe fractional) beat position: its clip and energy."""
+    return np.floor(np.asarray(position) + 10.0 ** -START_DECIMALS).astype(np.int64)
+
+
+def nearest_beat(position: np.ndarray) -> np.ndarray:
+    """The library beat nearest each beat position: whose boundary features stand for it."""
+    return np.round(np.asarray(position)).astype(np.int64)
 
 
 def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
     """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
     the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
     ratio = library.step_ratios
-    first = np.floor(library.beats[starts]).astype(np.int64)
-    clip = library.beat_clip[starts]
+    first = np.floor(beat_frames(library, starts)).astype(np.int64)
+    clip = library.beat_clip[beat_index(starts)]
     lo = np.maximum(first - 1, library.clip_starts[clip])
     hi = np.minimum(first + int(round(CUT_BLEND_S * library.fps)) + 1, library.clip_starts[clip + 1] - 1)
     return np.array([ratio[a : b + 1].max() for a, b in zip(lo, hi, strict=True)])
@@ -256,12 +294,15 @@ def stretch_kinetics(library: MotionLibrary, beats: int) -> tuple[np.ndarray, np
                  for x in (after, before))
 
 
-def _ranks(x: np.ndarray) -> np.ndarray:
-    """Each value's rank as a fraction in [0, 1] (ties share their mean rank: all equal, all 0.5)."""
-    if len(x) < 2:
+def _ranks(x: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+    """Each value's rank as a fraction in [0, 1] among `among` (default: `x` itself; ties share their mean rank:
+    all equal, all 0.5)."""
+    among = x if among is None else among
+    if len(among) < 2:
         return np.full(len(x), 0.5)
-    s = np.sort(x)
-    return (np.searchsorted(s, x, "left") + np.searchsorted(s, x, "right") - 1) / (2.0 * (len(x) - 1))
+    s = np.sort(among)
+    return np.clip((np.searchsorted(s, x, "left") + np.searchsorted(s, x, "right") - 1) / (2.0 * (len(s) - 1)),
+                   0.0, 1.0)
 
 
 def _weights(settings: Settings, dim: int) -> np.ndarray:
@@ -290,14 +331,19 @@ class _Bars:
                                        "a figure from; add longer clips (a few bars each)")
         if len(starts) == 0:
             raise self.too_short
-        self.clip = library.beat_clip[starts]
+        self.clip = library.beat_clip[beat_index(starts)]
         csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
-        span = np.maximum(np.round(ratios * grid.meter).astype(np.int64), 1)
-        self.fig_energy = _ranks((csum[np.minimum(starts + span, nb)] - csum[starts]) / span)
+        span = np.maximum(np.round(ratios * grid.meter), 1.0)  # the whole beats from its start
+        beat = np.arange(nb + 1)
+        energy = (np.interp(np.minimum(starts + span, nb), beat, csum) - np.interp(starts, beat, csum)) / span
+        # ranked among the figures that start on a clip's beat: the figures between two beats carry on from them
+        # and do not weigh their clips' energy twice
+        self.fig_energy = _ranks(energy, energy[starts == np.round(starts)])
         self.weights = _weights(settings, library.features.shape[1])
         self.feats = library.features * np.sqrt(self.weights)
         self.sq = (self.feats**2).sum(1)
         self.ustarts, self.start_of = np.unique(starts, return_inverse=True)
+        self.ufeat = nearest_beat(self.ustarts)  # the beat whose features stand for each distinct start
         bar_times = [(grid.beats[a], grid.beats[a + n]) for a, n in grid.bars]
         frames = [(min(max(0, int(t0 * MUSIC_FPS)), len(onset) - 1), int(t1 * MUSIC_FPS)) for t0, t1 in bar_times]
         loud = np.array([onset[a : max(a + 1, b)].mean() for a, b in frames])
@@ -321,10 +367,10 @@ class _Bars:
         of a cut to each distinct start from each distinct end (float32, a row per start: the min over ends runs
         along memory), and per figure the end it carries on from (its clip's own continuation, -1: none)."""
         if n_prev not in self.cache:
-            starts, feats, sq, ustarts = self.starts, self.feats, self.sq, self.ustarts
-            ends = starts + self.ratios * n_prev
+            starts, feats, sq, ustarts = self.starts, self.feats, self.sq, self.ufeat
+            ends = np.round(starts + self.ratios * n_prev, START_DECIMALS)
             uend, end_of = np.unique(ends, return_inverse=True)
-            at = np.minimum(np.round(uend).astype(np.int64), self.nb - 1)
+            at = np.minimum(nearest_beat(uend), self.nb - 1)
             d = np.maximum(sq[at][:, None] + sq[ustarts][None, :] - 2.0 * feats[at] @ feats[ustarts].T, 0.0)
             if self.scale is None:
                 self.scale = float(np.median(d)) or 1.0
@@ -345,7 +391,7 @@ class _Bars:
         end = starts + ratios * n
         last = np.minimum(np.ceil(end - 1e-9).astype(np.int64), self.nb - 1)
         fits = (end <= self.nb - 1) & (library.beat_clip[last] == self.clip)
-        clip_s = (beat_frames(library, end) - library.beats[starts]) / library.fps
+        clip_s = (beat_frames(library, end) - beat_frames(library, starts)) / library.fps
         with np.errstate(divide="ignore", invalid="ignore"):
             log_speed = np.log(clip_s / song_s)
         fits &= np.isfinite(log_speed)
@@ -371,7 +417,8 @@ class _Bars:
         if previous is not None:
             self.joins(self.grid.bars[0][1])  # sets the scale of a join's cost
             p = previous.astype(np.float32) * np.sqrt(self.weights)
-            join = np.maximum(p @ p + self.sq[self.starts] - 2.0 * self.feats[self.starts] @ p, 0.0)
+            at = nearest_beat(self.starts)
+            join = np.maximum(p @ p + self.sq[at] - 2.0 * self.feats[at] @ p, 0.0)
             cost = cost + join / self.scale + self.settings.cut + self.calm(speed)
         return cost
 
@@ -392,7 +439,8 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
          previous: np.ndarray | None = None, match: FigureMatch | None = None,
          form: SongForm | None = None, kinetics: tuple[np.ndarray, np.ndarray] | None = None
          ) -> list[tuple[int, float]]:
-    """The figure (its start, a beat of the library, and its clip beats per song beat) for every bar of `grid`:
+    """The figure (its start, a beat of the library, maybe between two, and its clip beats per song beat) for every
+    bar of `grid`:
     the cheapest path through the bars (see the module's docstring); `onset` [T] is the song's onset strength at
     MUSIC_FPS. `previous` [FEATURE_DIM]: the boundary features of the pose the first figure follows (a continued
     dance's last frame), joined to as a figure's end is. `kinetics`: `stretch_kinetics(library, grid.meter)`,
@@ -421,7 +469,7 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     path = [int(np.argmin(cost))]
     for b in range(len(grid.bars) - 1, 0, -1):
         path.append(int(back[b, path[-1]]))
-    return [(int(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
+    return [(float(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
 
 
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
@@ -456,7 +504,7 @@ def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, gr
     step (`transitions.cut_steps`)."""
     rows, runs, warp = [], [], 0.0
     for k, f in enumerate(figures):
-        clip = int(library.beat_clip[f.start])
+        clip = int(library.beat_clip[beat_index(f.start)])
         lib = f.frames(library)
         t0 = library.clip_starts[clip]
         song = np.clip(f.times, start_s, end_s)
@@ -464,7 +512,7 @@ def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, gr
         rows.append({"clip": library.names[clip], "clip_s": [round(float((lib[0] - t0) / library.fps), 3),
                                                               round(float((lib[-1] - t0) / library.fps), 3)],
                      "song_s": [round(float(song[0]), 3), round(float(song[-1]), 3)], "ratio": round(f.ratio, 3)})
-        continues = k > 0 and figures[k - 1].end == f.start
+        continues = k > 0 and figures[k - 1].carries_on(f)
         if continues:
             runs[-1] = (runs[-1][0] + 1, runs[-1][1] + song[-1] - song[0])
         else:

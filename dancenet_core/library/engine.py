@@ -12,7 +12,7 @@ import numpy as np
 
 from ..constants import MIN_PART_S
 from ..engines import Takes
-from ..engines.styles import check_style, choose_style, load_style_model
+from ..engines.styles import check_style, choose_style, load_style_model, meter_of, style_by_tempo
 from ..errors import DanceNetError, GenerationCancelled
 from ..motion import Motion
 from ..music.features import MusicAnalysis
@@ -78,11 +78,10 @@ class LibraryEngine:
         t = time.perf_counter()
         library = self.library(request)
         styles = self.styles(request)
-        heard = set(styles) & set(load_style_model().styles)  # styles the music classifier can tell
-        if request.style == ANY_STYLE or (request.style == "auto" and not heard):
-            chosen, probs = "", {}  # asked for, or a library of styles no classifier knows: every clip may dance
+        if request.commercial:  # no classifier: the user's style, else the one whose tempo and meter fit the song's
+            chosen, probs = _style_without_classifier(request.style, analysis, styles), {}
         else:
-            chosen, probs = choose_style(request.style, analysis, sorted(heard) if request.style == "auto" else styles)
+            chosen, probs = _style_by_classifier(request.style, analysis, styles)
         timings["style_s"] = time.perf_counter() - t
         if should_cancel():
             raise GenerationCancelled
@@ -90,14 +89,36 @@ class LibraryEngine:
         progress("dancing", 0.0)
         start, end = request.part(analysis.duration_s)
         kept = _kept(request, library.fps, end - start)
-        match = _load_match() if library.unlabelled else None
+        match = _load_match() if library.unlabelled and not request.commercial else None
         dances = choreograph(library, analysis, request.seed, start + (0.0 if kept is None else kept.duration), end,
                              request.takes, chosen or None, kept=kept, match=match)
         timings["choreography_s"] = time.perf_counter() - t
         progress("dancing", 1.0)
         motions = [d.motion if kept is None else _after(kept, d.motion) for d in dances]
+        parts = ["shipped_library" if request.library is None else "own_library",
+                 *(["style_classifier"] if probs else []), *(["learned_match"] if match is not None else []),
+                 *(["chosen_style"] if request.style not in ("auto", ANY_STYLE) else []),
+                 *(["style_by_tempo"] if request.commercial and request.style == "auto" else [])]
         return Takes(motions, chosen or ANY_STYLE, probs, timings=timings,
-                     details=[d.report.summary() | {"danced_figures": d.report.figures} for d in dances])
+                     details=[d.report.summary() | {"danced_figures": d.report.figures} for d in dances], parts=parts)
+
+
+def _style_by_classifier(requested: str, analysis: MusicAnalysis, styles: list[str]) -> tuple[str, dict]:
+    """The user's style, or the classifier's among the library's styles it can tell."""
+    heard = set(styles) & set(load_style_model().styles)  # styles the music classifier can tell
+    if requested == ANY_STYLE or (requested == "auto" and not heard):
+        return "", {}  # asked for, or a library of styles no classifier knows: every clip may dance
+    return choose_style(requested, analysis, sorted(heard) if requested == "auto" else styles)
+
+
+def _style_without_classifier(requested: str, analysis: MusicAnalysis, styles: list[str]) -> str:
+    """The user's style, or the library's style whose dance-sport tempo and meter fit the song's ("" when none does:
+    every clip may dance, the plan led by the music's energy and tempo alone)."""
+    if requested == ANY_STYLE:
+        return ""
+    if requested != "auto":
+        return requested
+    return style_by_tempo(analysis.tempo_bpm, meter_of(analysis), styles)
 
 
 def _after(kept: Motion, new: Motion) -> Motion:

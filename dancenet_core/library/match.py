@@ -247,7 +247,7 @@ class FigureMatch:
     def _clip_styles(self, starts: np.ndarray, embedded: np.ndarray) -> np.ndarray:
         """[F]: the style of each figure's clip, the most probable over its figures (a style is the clip's, not a
         bar's: its figures share it, so that the plan keeps to the style and not to a clip's most typical bars)."""
-        clip = self.library.beat_clip[starts]
+        clip = self.library.beat_clip[np.floor(starts + 1e-6).astype(np.int64)]
         probs = self.model.style_probs(embedded)
         sums = np.stack([np.bincount(clip, probs[:, k], self.library.num_clips) for k in range(probs.shape[1])], 1)
         return sums.argmax(axis=1)[clip]

@@ -21,9 +21,10 @@ from ..environment import WEIGHTS_DIR, cache_root
 from ..errors import DanceNetError
 from ..motion import Motion
 from ..skeleton import BODY_JOINTS, Skeleton
-from .analysis import FEATURE_DIM, ClipAnalysis
+from .analysis import FEATURE_DIM, ClipAnalysis, with_assumed_tempi
+from .loops import danced_around
 
-LIBRARY_VERSION = "motion-library-5"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-6"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
@@ -118,9 +119,12 @@ class MotionLibrary:
     @classmethod
     def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()
                    ) -> MotionLibrary:
-        """A library of (name, style, motion at LIBRARY_FPS, its analysis) clips; the skeleton is their mean."""
+        """A library of (name, style, motion at LIBRARY_FPS, its analysis) clips; the skeleton is their mean. A clip
+        that loops is laid end to end (`loops.danced_around`); one too short for its tempo to be read takes the
+        library's (`analysis.with_assumed_tempi`)."""
         if not clips:
             raise DanceNetError("no clip to build a library from")
+        clips = with_assumed_tempi([danced_around(c) for c in clips])
         starts = np.cumsum([0] + [m.num_frames for _, _, m, _ in clips])
         return cls(
             rotations=np.concatenate([m.rotations for _, _, m, _ in clips]).astype(np.float32),

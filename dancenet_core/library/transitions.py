@@ -50,13 +50,14 @@ HOLD_SMOOTH_FRAMES = 2.0
 @dataclass
 class Figure:
     """A bar of the dance: `beats` song beats, at song times `times` ([beats + 1] seconds, one per beat and the next
-    bar's first), danced by the library's beats from the library beat `start`, `ratio` of them per song beat (2: two
+    bar's first), danced by the library's beats from the library beat `start` (maybe between two beats: a figure
+    that carries on from one that ended there), `ratio` of them per song beat (2: two
     clip beats in each song beat; 0.5: one in two; between two beats of the clip, its frames in proportion). The
     figure's first and last clip beats fall on the bar's first beat and the next bar's; between them it plays at
     one speed, so the dancer's own timing within the bar is kept (and a song's or a clip's unevenly tracked beats
     do not hurry one beat and drag the next)."""
 
-    start: int
+    start: float
     beats: int
     times: np.ndarray
     ratio: float = 1.0
@@ -65,6 +66,10 @@ class Figure:
     def end(self) -> float:
         """The library beat (maybe between two) where the figure ends: the next figure's start if it carries on."""
         return self.start + self.ratio * self.beats
+
+    def carries_on(self, nxt: Figure) -> bool:
+        """Whether `nxt` starts where this figure ends (the clip's own continuation, no cut)."""
+        return abs(self.end - nxt.start) < 1e-5
 
     def frames(self, library: MotionLibrary) -> np.ndarray:
         """[beats + 1]: the library frames (sub-frame) played at `times`."""
@@ -129,12 +134,11 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
         sel = which == k
         if sel.any():
             pos[sel] = np.interp(t[sel], f.times, f.frames(library))
-    clip = library.beat_clip[[f.start for f in figures]][which]
+    clip = library.beat_clip[np.floor(np.array([f.start for f in figures]) + 1e-6).astype(np.int64)][which]
     rot, root = _sample(library, pos, clip)
 
     # Runs: figures that continue one clip. Each is placed once; a cut starts a new run.
-    new_run = np.array([k == 0 or figures[k - 1].end != f.start
-                        for k, f in enumerate(figures)])
+    new_run = np.array([k == 0 or not figures[k - 1].carries_on(f) for k, f in enumerate(figures)])
     run_of_figure = np.cumsum(new_run) - 1
     run = run_of_figure[which]
     cuts = [int(c) for c in np.flatnonzero(np.diff(run)) + 1]

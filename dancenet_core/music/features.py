@@ -147,9 +147,10 @@ class MusicAnalysis:
         if not np.isclose(self.tempo_bpm, 60.0 / np.median(ibi) if len(ibi) else 0.0, rtol=1e-9, atol=0.0):
             raise ValueError(f"a tempo of {self.tempo_bpm:g} BPM that is not the beats'")
 
-    def save(self, path: str | Path) -> None:
+    def save(self, path: str | Path, version: str = FEATURE_VERSION) -> None:
         """Write an .npz (no pickles), atomically so a killed run never leaves half a cache entry, and two
-        processes writing the same entry leave one whole copy; refuses a result that is not finite."""
+        processes writing the same entry leave one whole copy; refuses a result that is not finite. `version`
+        names the computation (another analysis, `weightfree`, writes its own)."""
         self.check()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -160,7 +161,7 @@ class MusicAnalysis:
             "meta": np.array(
                 json.dumps(
                     {
-                        "version": FEATURE_VERSION,
+                        "version": version,
                         "tempo_bpm": self.tempo_bpm,
                         "duration_s": self.duration_s,
                         "fps": self.fps,
@@ -174,12 +175,13 @@ class MusicAnalysis:
             np.savez(f, **arrays)
 
     @classmethod
-    def load(cls, path: str | Path) -> MusicAnalysis:
-        """Read an entry written by `save`; ValueError for anything else (truncated, empty, stale, damaged)."""
+    def load(cls, path: str | Path, version: str = FEATURE_VERSION) -> MusicAnalysis:
+        """Read an entry written by `save` with `version`; ValueError for anything else (truncated, empty, stale,
+        damaged, another analysis')."""
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
-                if meta.get("version") != FEATURE_VERSION:
+                if meta.get("version") != version:
                     raise ValueError(f"features of version {meta.get('version')}")
                 result = cls(
                     features=z["features"],

@@ -1,7 +1,7 @@
-"""Where the floor is under a dancer, from the lowest toe end: a constant height for a clip (`floor_offset`, the
-dataset fits), a height per frame that follows a capture's drift (`floor_track`, the paired dataset and a
-motion library's clips) or a generated dance's own contacts (`floor_shift`, the last step of generation).
-Torch-free: a library build in Blender uses it."""
+"""Where the floor is under a dancer, from the lowest toe end (or, for a motion library's clips, the body's lowest
+point): a constant height for a clip (`floor_offset`, the dataset fits), a height per frame that follows a
+capture's drift (`floor_track`, the paired dataset and a motion library's clips) or a generated dance's own
+contacts (`floor_shift`, the last step of generation). Torch-free: a library build in Blender uses it."""
 
 from __future__ import annotations
 
@@ -19,15 +19,25 @@ def floor_offset(motion: Motion) -> float:
     return float(np.percentile(toes, 2))
 
 
-def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5) -> np.ndarray:
+def lowest_point(motion: Motion) -> np.ndarray:
+    """The height [T] of the body's lowest point, every joint and end site: a toe when the dancer stands, a hand,
+    a knee, the back or the head in floor work."""
+    pos, _, ends = fk_numpy(motion.skeleton, motion.rotations, motion.root_positions, with_end_sites=True)
+    return np.minimum(pos[..., 1].min(axis=1), ends[..., 1].min(axis=1))
+
+
+def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5, body: bool = False) -> np.ndarray:
     """The floor's height under the dancer, frame by frame [T].
 
     Most captures drift upward by 0.2-0.5 m over a minute (the toes of a waltz end up 0.4 m above where
     they started). A ballroom dancer has a foot on the floor within any two seconds, so the lowest toe
-    end over a 2-s window, smoothed, follows the floor; subtracting it removes the drift.
+    end over a 2-s window, smoothed, follows the floor; subtracting it removes the drift. With `body` (a motion
+    library's clips, which may hold floor work: freezes, head spins, a hand or the back on the floor) the lowest
+    point of the whole body (`lowest_point`) stands for the toes: a dancer on their hands is still on the floor.
+    The paired dataset keeps the toes, which DanceNet's foot clean-up and contacts are measured from.
     """
-    toes = motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
-    low = minimum_filter1d(toes, size=max(1, int(window_s * motion.fps)), mode="nearest")
+    low = lowest_point(motion) if body else motion.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
+    low = minimum_filter1d(low, size=max(1, int(window_s * motion.fps)), mode="nearest")
     return gaussian_filter1d(low, smooth_s * motion.fps, mode="nearest")
 
 

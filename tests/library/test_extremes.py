@@ -25,7 +25,7 @@ def pumping(seconds: float, bpm: float, phase: float) -> Motion:
 def _calm_and_pumping() -> MotionLibrary:
     return library_of(*[(f"calm{k}", dancer(30, bpm, amplitude=0.3 + 0.1 * k, phase=k))
                         for k, bpm in enumerate((100, 110, 120))],
-                      *[(f"pump{k}", pumping(12, 110, phase=k)) for k in range(3)])
+                      *[(f"pump{k}", pumping(12.3, 110, phase=k)) for k in range(3)])  # no loops
 
 
 def _piled_cuts(settings: Settings) -> tuple[int, int]:
@@ -43,7 +43,7 @@ def _piled_cuts(settings: Settings) -> tuple[int, int]:
             end = prev + r_prev * n_prev
             if end != start:
                 cuts += 1
-                piled += int((np.minimum(before[int(round(end))], after[start]) > 1.0).any())
+                piled += int((np.minimum(before[int(round(end))], after[int(round(start))]) > 1.0).any())
     return piled, cuts
 
 

@@ -16,7 +16,7 @@ from test_library import FPS, _cli, dancer, library_of, song
 from dancenet_core.bvh import write_bvh
 from dancenet_core.errors import DanceNetError
 from dancenet_core.library import build, engine
-from dancenet_core.library.choreography import Settings, choreograph
+from dancenet_core.library.choreography import Settings, beat_index, choreograph
 from dancenet_core.library.match import (
     SAMPLES,
     FigureMatch,
@@ -110,7 +110,7 @@ class _Prefers:
         self.library, self.clip = library, clip
 
     def fit(self, bar: int, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
-        return np.where(self.library.beat_clip[starts] == self.clip, 1.0, -1.0)
+        return np.where(self.library.beat_clip[beat_index(starts)] == self.clip, 1.0, -1.0)
 
     def style_away(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
         return np.zeros(len(starts))
@@ -131,7 +131,7 @@ class _OfStyle(_Prefers):
     """A stand-in for the match whose part sounds like one clip's style only."""
 
     def style_away(self, starts: np.ndarray, ratios: np.ndarray, beats: int) -> np.ndarray:
-        return np.where(self.library.beat_clip[starts] == self.clip, 0.0, 1.0)
+        return np.where(self.library.beat_clip[beat_index(starts)] == self.clip, 0.0, 1.0)
 
 
 def test_the_plan_keeps_to_the_style_the_match_hears(library: MotionLibrary, monkeypatch: pytest.MonkeyPatch
