@@ -6,6 +6,7 @@ as wheels, which Blender installs with the extension) and as a legacy add-on mod
 `dancenet_core`, which never imports bpy.
 """
 
+import atexit
 import os
 
 import bpy
@@ -34,15 +35,22 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
 }
 
 _CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
+
+
 def register() -> None:
+    """Unregistered at the interpreter's exit unless `unregister` runs first: Blender disables the add-ons its
+    preferences enabled when it quits, but not one a script registered itself, and bpy 4.5 as a Python module
+    never ends a process that exits with an operator or a panel class still registered."""
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
     warming.start()
+    atexit.register(unregister)  # runs before bpy's own exit, which was registered when bpy was imported
 
 
 def unregister() -> None:
+    atexit.unregister(unregister)
     warming.stop()
     menus.unregister()
     properties.unregister()

@@ -114,6 +114,26 @@ def counting(tmp_path, monkeypatch):
             warmup._finished(compiling, lambda: True)
 
 
+def test_a_warm_up_whose_dance_raises_ends_its_compiling_process(counting, monkeypatch) -> None:
+    """The weights failing to load (say) ends the warm-up: its compiling process is killed and waited for, and
+    the file its stderr went to is closed, not left to the interpreter's exit."""
+    from dancenet_core import jit, warmup
+
+    child, started = counting
+
+    def broken() -> None:
+        raise OSError("the weights are unreadable")
+
+    monkeypatch.setattr(warmup, "_dance", broken)
+    monkeypatch.setattr(jit, "_deferred", True)
+    with pytest.raises(OSError, match="unreadable"):
+        warmup.warm_up()
+    (compiling,) = started
+    assert compiling.process.returncode is not None
+    assert compiling.errors.closed
+    assert warmup._running is None
+
+
 @needs_stop
 def test_a_generation_stops_the_compiling_process_and_continues_it_after(counting) -> None:
     from dancenet_core import warmup
