@@ -37,20 +37,24 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
 _CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
 
 
+def _unregister_at_exit() -> None:
+    """Blender disables the add-ons its preferences list when it quits, not one a script registered itself, and
+    bpy 4.5 as a Python module never ends a process that exits with an operator or a panel class registered."""
+    if __package__ not in bpy.context.preferences.addons:
+        unregister()
+
+
 def register() -> None:
-    """Unregistered at the interpreter's exit unless `unregister` runs first: Blender disables the add-ons its
-    preferences enabled when it quits, but not one a script registered itself, and bpy 4.5 as a Python module
-    never ends a process that exits with an operator or a panel class still registered."""
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
     warming.start()
-    atexit.register(unregister)  # runs before bpy's own exit, which was registered when bpy was imported
+    atexit.register(_unregister_at_exit)  # runs before bpy's own exit, registered when bpy was imported
 
 
 def unregister() -> None:
-    atexit.unregister(unregister)
+    atexit.unregister(_unregister_at_exit)
     warming.stop()
     menus.unregister()
     properties.unregister()

@@ -10,7 +10,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
+# pip builds the project in its build/ folder, as build_addon does: on the worker of the other tests that build it
+pytestmark = pytest.mark.xdist_group("build")
 
 
 def _run(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
