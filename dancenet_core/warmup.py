@@ -82,6 +82,15 @@ def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:
 WAITED = ("networks", "beat decode")  # the kernels a click waits for (above), compiled first
 
 
+def _all_loaded() -> bool:
+    """Whether this process has every kernel already (a warm-up ran here before: the add-on enabled again), so
+    that no process is started to compile them. Looked up without importing the kernels' modules, which a first
+    warm-up imports only once its compiling process has started."""
+    names = ("music.madmom_nets", "music.madmom_dbn", "runtime.sampler")
+    modules = [sys.modules.get(f"{__package__}.{name}") for name in names]
+    return all(m is not None and all(k.signatures for k in m.KERNELS) for m in modules)
+
+
 def compile_kernels() -> None:
     """Compile every kernel into numba's on-disk cache, printing each one's name once it is there (what the
     process `warm_up` starts runs)."""
@@ -206,7 +215,7 @@ def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContext
     generations on other threads holds the same lock around them, so the two never race. With the kernels
     deferred, another process compiles them meanwhile (see above)."""
     held = lock or contextlib.nullcontext()
-    child = _compile_elsewhere() if not jit.may_compile() else None
+    child = _compile_elsewhere() if not (jit.may_compile() or _all_loaded()) else None
     if child is not None:
         try:
             if not cancelled():
