@@ -32,8 +32,8 @@ print("LOADED", flush=True)
 INSTALLED = """
 import sys
 sys.path.insert(0, sys.argv[1])  # the fresh bpy: this interpreter runs with -I -S, so nothing else is importable
-import addon_utils
 import bpy
+import addon_utils  # on the path once bpy is imported
 on_install = sys.argv[3] == "on install"
 assert bpy.ops.extensions.package_install_files(filepath=sys.argv[2], repo="user_default",
                                                 enable_on_install=on_install) == {"FINISHED"}
