@@ -12,8 +12,9 @@ setup:
 test: lint
 	@bash scripts/run_tests.sh
 
-# The checks on the whole motion capture dataset and on real training (the `data` marker; ../shared/data or
-# $DANCENET_DATA), which `make test` leaves out: run before a change to the data or a model (docs/training.md).
+# The checks on the real motion capture data beyond seconds of it (the `data` marker: the whole dataset built, whole
+# sequences fitted; ../shared/data or $DANCENET_DATA), which `make test` leaves out: run before a change to the
+# data or a model (docs/training.md).
 check-data: setup
 	@bash scripts/run_tests.sh --data
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Run the test-suite inside the venv (bpy 4.5 LTS, Python 3.11), then the add-on's tests again in the second venv
 # (bpy 5.2 LTS, Python 3.13, numpy 2, no torch) with the evaluation's metrics (scipy 1.18), with Blender's user
-# folders in a scratch directory. `--data` (`make check-data`) runs instead the checks on the whole real dataset
-# and on real training (pytest's `data` marker), which `make test` leaves out: docs/training.md.
+# folders in a scratch directory. `--data` (`make check-data`) runs instead the checks on the real data beyond
+# seconds of it (pytest's `data` marker: the whole dataset, whole sequences fitted), which `make test` leaves out.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DATA_ONLY=0
