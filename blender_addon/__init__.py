@@ -6,6 +6,7 @@ as wheels, which Blender installs with the extension) and as a legacy add-on mod
 `dancenet_core`, which never imports bpy.
 """
 
+import atexit
 import os
 
 import bpy
@@ -34,15 +35,26 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
 }
 
 _CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
+
+
+def _unregister_at_exit() -> None:
+    """Blender disables the add-ons its preferences list when it quits, not one a script registered itself, and
+    bpy 4.5 as a Python module never ends a process that exits with an operator or a panel class registered."""
+    if __package__ not in bpy.context.preferences.addons:
+        unregister()
+
+
 def register() -> None:
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
     warming.start()
+    atexit.register(_unregister_at_exit)  # runs before bpy's own exit, registered when bpy was imported
 
 
 def unregister() -> None:
+    atexit.unregister(_unregister_at_exit)
     warming.stop()
     menus.unregister()
     properties.unregister()

@@ -1,10 +1,10 @@
 """The add-on's warm-up thread (the first Generate Dance's imports and weights, and the numba kernels, compiled
 by a process of its own meanwhile: dancenet_core/warmup.py) and the lock a Generate Dance shares with it.
 
-Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not made to race
-one another, and a pytest process running Generate Dance beside a warm-up ended in a segmentation fault. Each
-warm-up step and each generation hold `LOCK`, so a click during the warm-up waits for its current step and
-then finds that work done; a generation also stops the compiling process while it runs (`generating`).
+Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not safe to run
+on two threads at once. Each warm-up step and each generation hold `LOCK`, so a click during the warm-up waits
+for its current step and then finds that work done; a generation also stops the compiling process while it runs
+(`generating`).
 """
 
 from __future__ import annotations
@@ -20,14 +20,20 @@ _thread: threading.Thread | None = None
 
 def _warm_up(stop: threading.Event) -> None:
     """Never touches bpy, so disabling the add-on meanwhile only stops it early. Not a daemon thread: one frozen
-    mid-import or mid-compile when Python shuts down can hang the shutdown, so Python waits for it instead;
-    Blender disables its add-ons when it quits, so that wait is one step at most."""
+    mid-import or mid-compile when Python shuts down can hang the shutdown, so Python waits for it instead, and
+    the thread stops after its current step once the main thread has ended (bpy as a Python module: the script
+    is done; Blender's own main thread runs until it quits, and disables its add-ons then)."""
+
+    def cancelled() -> bool:
+        return stop.is_set() or not threading.main_thread().is_alive()
+
     try:
         from dancenet_core.warmup import warm_up
 
-        warm_up(stop.is_set, LOCK)
+        warm_up(cancelled, LOCK)
     except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
-        print(f"DanceNet: warm-up stopped: {e}")
+        if not cancelled():  # an import cut short by Python's shutdown is no fault
+            print(f"DanceNet: warm-up stopped: {e}")
 
 
 @contextlib.contextmanager

@@ -4,15 +4,15 @@ numba kernels (compiled, or read from numba's on-disk cache) and the shipped wei
 
 Where kernels are deferred (dancenet_core.jit: the add-on), a Python process of its own, started first,
 compiles them into numba's cache while this one imports and loads the rest; each kernel is used from numba's
-cache as soon as that process has written it (a call then loads it, ~0.1 s). Once the process is done, the
+cache as soon as that process has written it (a call then only loads it). Once the process is done, the
 kernels are loaded here, a step at a time (compiled here if the process failed).
 
 A click meanwhile waits for the music analysis' kernels from that process rather than running their numpy
-twins (the same numbers; the twins take ~4 s for a minute of song, the process compiles both in ~2 s and
-started when the add-on was enabled), and runs the sampler's twin (a fraction of a second for a short dance).
-While a Generate Dance runs, that process is stopped once it has written the analysis' kernels (`paused`) and
-continued after: on a machine with few cores its compile took the CPU from the click (a first click on a
-Rigify rig took 3-10 s beside it).
+twins (the same numbers, but the twins take longer on a minute of song than that process takes to compile
+both, and it started when the add-on was enabled), and runs the sampler's twin (a fraction of a second for a
+short dance). While a Generate Dance runs, that process is stopped once it has written the analysis' kernels
+(`paused`) and continued after: on a machine with few cores its compile would take the CPU from the click. The
+measurements behind these choices: docs/experiments.md, "The first click on a Rigify rig".
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
 they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
@@ -80,6 +80,15 @@ def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:
 
 
 WAITED = ("networks", "beat decode")  # the kernels a click waits for (above), compiled first
+
+
+def _all_loaded() -> bool:
+    """Whether this process has every kernel already (a warm-up ran here before: the add-on enabled again), so
+    that no process is started to compile them. Looked up without importing the kernels' modules, which a first
+    warm-up imports only once its compiling process has started."""
+    names = ("music.madmom_nets", "music.madmom_dbn", "runtime.sampler")
+    modules = [sys.modules.get(f"{__package__}.{name}") for name in names]
+    return all(m is not None and all(k.signatures for k in m.KERNELS) for m in modules)
 
 
 def compile_kernels() -> None:
@@ -206,11 +215,15 @@ def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContext
     generations on other threads holds the same lock around them, so the two never race. With the kernels
     deferred, another process compiles them meanwhile (see above)."""
     held = lock or contextlib.nullcontext()
-    child = _compile_elsewhere() if not jit.may_compile() else None
+    child = _compile_elsewhere() if not (jit.may_compile() or _all_loaded()) else None
     if child is not None:
-        if not cancelled():
-            with held:
-                _dance()  # the weights, while the kernels compile (the sampler's twin on 8 frames)
+        try:
+            if not cancelled():
+                with held:
+                    _dance()  # the weights, while the kernels compile (the sampler's twin on 8 frames)
+        except BaseException:
+            _finished(child, lambda: True)  # a failed step leaves no process unwaited, no stderr file open
+            raise
         if not _finished(child, cancelled):
             return
     for step in (*(step for step, _ in _kernels().values()), _analysis):

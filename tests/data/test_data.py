@@ -29,6 +29,7 @@ def fitted(shared_data) -> dict:
     return out
 
 
+@pytest.mark.data  # fits whole capture sequences
 @pytest.mark.parametrize("name", ["DANCE_W_1", "DANCE_C_2"])
 def test_fit_error_bounds_on_real_sequences(fitted: dict, name: str) -> None:
     _, err = fitted[name]
@@ -36,6 +37,7 @@ def test_fit_error_bounds_on_real_sequences(fitted: dict, name: str) -> None:
     assert np.percentile(err, 95) < 0.07, f"p95 fit error {np.percentile(err, 95) * 100:.2f} cm"
 
 
+@pytest.mark.data
 def test_closed_hold_waltz_has_right_hand_raised_and_head_turned_left(fitted: dict) -> None:
     """The mirror fix: in the standard closed hold the right hand is up and the head turns left."""
     motion, _ = fitted["DANCE_W_1"]
@@ -48,6 +50,7 @@ def test_closed_hold_waltz_has_right_hand_raised_and_head_turned_left(fitted: di
     assert np.median(yaw) > 10.0  # left is +X: a positive turn about +Y looks left
 
 
+@pytest.mark.data
 def test_fit_rotations_are_smooth(fitted: dict) -> None:
     motion, _ = fitted["DANCE_C_2"]
     q = Rotation.from_rotvec(motion.rotations[:, :BODY_JOINTS].reshape(-1, 3)).as_quat().reshape(-1, BODY_JOINTS, 4)

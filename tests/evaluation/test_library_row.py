@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from dancenet_core.data.build import build_dataset
 from dancenet_core.data.split import load_split
 from dancenet_core.evaluation.library_row import clip_analysis, library_note, library_row, users_library
@@ -13,6 +15,7 @@ from dancenet_core.library.choreography import WARP_RANGE
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
 
+@pytest.mark.data  # builds the whole training dataset: every capture sequence fitted
 def test_the_users_path_row(shared_data: Path) -> None:
     split = load_split()
     pairs = {p.seq: p for p in build_dataset(shared_data, progress=False)}

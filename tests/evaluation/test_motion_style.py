@@ -83,6 +83,7 @@ def test_tiny_model_tells_two_synthetic_styles_apart(tmp_path: Path) -> None:
     assert result["dance_accuracy"] == 1.0
 
 
+@pytest.mark.data  # fits a whole capture sequence
 def test_shipped_model_classifies_a_real_held_out_dance(shared_data: Path, tmp_path: Path) -> None:
     from dancenet_core.data.build import build_sequence
     from dancenet_core.data.dance_with_melody import read_manifest

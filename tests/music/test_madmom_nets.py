@@ -62,6 +62,7 @@ def test_example_song_matches_madmom() -> None:
     assert_same(load_audio(REPO / "examples" / "example_song.ogg").samples)
 
 
+@pytest.mark.data  # 100 s of a real song through madmom's own networks (the example song: the test above)
 def test_real_song_matches_madmom(shared_data: Path) -> None:
     """The first 100 s of a real waltz recording."""
     x = load_audio(shared_data / "dance_with_melody" / "DANCE_W_1.ogg").samples
