@@ -26,7 +26,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
@@ -60,6 +60,12 @@ DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
 PHRASE_TOLERANCE_S = 0.1  # a grid bar and a bar of the song's form that start this close are one bar
 START_DECIMALS = 6  # figure starts between two clip beats are rounded to this many decimals of a beat
+# `plan_at_clips_energy`: the dance's mean joint speed within this share of the clips', in at most this many plans,
+# the music's energy ranks shifted by this much first (then by the secant), never by more than the last
+ENERGY_TOLERANCE = 0.03
+ENERGY_ROUNDS = 4
+ENERGY_STEP = 0.15
+MAX_ENERGY_SHIFT = 0.6
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,10 @@ class Settings:
     # past one standard deviation each lies (`stretch_kinetics`), so that the plan does not lay the library's
     # extremes back to back where no dancer did.
     pile: float = 0.05
+    # The music's energy ranks are shifted by this much (clipped to [0, 1]) before figures are matched to them:
+    # `plan_at_clips_energy` sets it so that the dance moves as fast as the clips do on average (`energy_match`).
+    energy_shift: float = 0.0
+    energy_match: bool = True
 
 
 DEFAULT_SETTINGS = Settings()
@@ -336,8 +346,8 @@ class _Bars:
         span = np.maximum(np.round(ratios * grid.meter), 1.0)  # the whole beats from its start
         beat = np.arange(nb + 1)
         energy = (np.interp(np.minimum(starts + span, nb), beat, csum) - np.interp(starts, beat, csum)) / span
-        # ranked among the figures that start on a clip's beat: the figures between two beats carry on from them
-        # and do not weigh their clips' energy twice
+        self.fig_energy_raw = energy  # mean joint speed per clip beat (m/s)
+        # ranked among the figures that start on a clip's beat (those between two beats carry on from them)
         self.fig_energy = _ranks(energy, energy[starts == np.round(starts)])
         self.weights = _weights(settings, library.features.shape[1])
         self.feats = library.features * np.sqrt(self.weights)
@@ -352,7 +362,7 @@ class _Bars:
         if settings.section_energy:
             means = np.array([loud[section == k].mean() for k in section])
             loud = (1 - settings.section_energy) * loud + settings.section_energy * means
-        self.music_rank = _ranks(loud)
+        self.music_rank = np.clip(_ranks(loud) + settings.energy_shift, 0.0, 1.0)
         self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
         if kinetics is None and settings.pile:
             kinetics = stretch_kinetics(library, grid.meter)
@@ -472,6 +482,59 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     return [(float(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
 
 
+def clips_energy(library: MotionLibrary) -> float:
+    """The clips' mean joint speed (m/s), every frame alike: `MotionLibrary.energy` weighted by each beat's length."""
+    last = np.r_[library.beat_clip[1:] != library.beat_clip[:-1], True]
+    ends = np.where(last, library.clip_starts[library.beat_clip + 1], np.r_[library.beats[1:], 0.0])
+    length = np.maximum(ends - library.beats, 0.0)
+    return float((library.energy * length).sum() / max(length.sum(), 1e-9))
+
+
+def dance_energy(library: MotionLibrary, grid: Grid, bars: list[tuple[float, float]]) -> float:
+    """The mean joint speed (m/s) of the clip beats a plan lays on the song's bars, each bar weighted by its length."""
+    csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
+    beat = np.arange(len(csum))
+    total = weight = 0.0
+    for (start, ratio), (a, n) in zip(bars, grid.bars, strict=True):
+        span = max(ratio * n, 1e-9)
+        mean = (np.interp(min(start + span, len(csum) - 1), beat, csum) - np.interp(start, beat, csum)) / span
+        seconds = grid.beats[a + n] - grid.beats[a]
+        total, weight = total + mean * seconds, weight + seconds
+    return total / max(weight, 1e-9)
+
+
+def plan_at_clips_energy(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
+                         style: str | None, settings: Settings, previous: np.ndarray | None,
+                         match: FigureMatch | None, form: SongForm | None,
+                         kinetics: tuple[np.ndarray, np.ndarray] | None) -> list[tuple[float, float]]:
+    """`plan`, its music's energy ranks shifted (`Settings.energy_shift`, the same noise each time) until the dance
+    moves within `ENERGY_TOLERANCE` of the clips' mean speed (`ENERGY_ROUNDS` plans at most, the nearest kept).
+
+    Why: the plan's joins favour calm figures (a cut between calm poses is cheaper, a cut into a calm figure is
+    calm), so a library that mixes calm clips with lively ones was danced at 0.8-0.9 of its clips' speed; matching
+    ranks alone cannot tell how far the choice of figures drifted. A library of one kind of dancing needs no shift."""
+    if not settings.energy_match:
+        return plan(library, grid, onset, rng, style, settings, previous, match, form, kinetics)
+    state = rng.bit_generator.state
+    target = clips_energy(library)
+    tried: list[tuple[float, float, list]] = []  # (how far off, log; the shift; the plan)
+    shift = settings.energy_shift
+    for _ in range(ENERGY_ROUNDS):
+        rng.bit_generator.state = state
+        bars = plan(library, grid, onset, rng, style, replace(settings, energy_shift=shift), previous, match, form,
+                    kinetics)
+        tried.append((float(np.log(max(dance_energy(library, grid, bars), 1e-9) / max(target, 1e-9))), shift, bars))
+        off = tried[-1][0]
+        if abs(off) <= np.log1p(ENERGY_TOLERANCE):
+            break
+        slope = 0.0
+        if len(tried) > 1 and tried[-1][1] != tried[-2][1]:  # the secant through the last two plans
+            slope = (off - tried[-2][0]) / (tried[-1][1] - tried[-2][1])
+        shift = float(np.clip(shift - off / slope if slope > 0 else shift - np.sign(off) * ENERGY_STEP,
+                              -MAX_ENERGY_SHIFT, MAX_ENERGY_SHIFT))
+    return min(tried, key=lambda t: abs(t[0]))[2]
+
+
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
                 end_s: float | None = None, takes: int = 1, style: str | None = None,
                 settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None,
@@ -490,7 +553,7 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     kinetics = stretch_kinetics(library, grid.meter) if settings.pile else None
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
+        bars = plan_at_clips_energy(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
