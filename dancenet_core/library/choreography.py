@@ -81,9 +81,9 @@ class Settings:
     contact: float = 0.3
     cut: float = 0.2  # every cut costs this much more than carrying on with the clip
     calm: float = 50.0  # per unit of a cut's step over the limit (steep: only where no calmer cut fits)
-    # With a learned match (a library whose clips name no style): per unit of its cosine below 1 on each bar (off: on
-    # the validation songs it did not raise the Beat Align Score), and per unit of the part's probability of a
-    # figure's clip's style below its most probable style's (docs/matching.md).
+    # With a learned match (a library whose clips name no style): per unit of its cosine below 1 on each bar (off,
+    # docs/matching.md), and per unit of the part's probability of a figure's clip's style below its most probable
+    # style's.
     match: float = 0.0
     match_style: float = 20.0
     # The song's form (`music.form`): a cut on a bar that begins no phrase costs this much more, and a bar's music

@@ -17,10 +17,20 @@ from dancenet_core.floor import floor_track, lowest_point
 from dancenet_core.generate import shape_take
 from dancenet_core.library.analysis import MIN_READ_S, analyze_clip
 from dancenet_core.library.build import build_library
-from dancenet_core.library.choreography import choreograph, clip_usage
+from dancenet_core.library.choreography import (
+    Settings,
+    choreograph,
+    clip_usage,
+    clips_energy,
+    dance_energy,
+    plan,
+    plan_at_clips_energy,
+    song_grid,
+)
 from dancenet_core.library.loops import around_loop, loop_period
 from dancenet_core.library.store import MotionLibrary
 from dancenet_core.motion import Motion
+from dancenet_core.music.features import ONSET_COL
 from dancenet_core.skeleton import BODY_JOINTS, JOINT_INDEX, TOE_ENDS
 
 FPS = 25.0
@@ -152,3 +162,21 @@ def test_how_many_clips_a_dance_uses_and_how_evenly() -> None:
     library = _library(*[(f"c{k}", dancer(30, 100 + 4 * k, amplitude=0.3 + 0.05 * k, phase=k)) for k in range(4)])
     summary = choreograph(library, song(40, 104), seed=1)[0].report.summary()
     assert 1.0 <= summary["effective_clips"] <= summary["clips"] <= 4
+
+
+def test_the_dance_moves_as_fast_as_the_clips() -> None:
+    """A library of calm clips and one lively one: the plan's energy ranks are shifted until the dance's mean joint
+    speed is the clips' (within 3%, or the nearest of its tries), whatever the joins prefer."""
+    library = _library(*[(f"calm{k}", dancer(30, 100 + 5 * k, amplitude=0.2, phase=k)) for k in range(3)],
+                       ("lively", dancer(30, 110, amplitude=0.7)))
+    music = song(40, 108, loud_from=20)
+    grid = song_grid(music, 0.0, 40.0)
+    onset = music.features[:, ONSET_COL]
+    target = clips_energy(library)
+    for seed in range(3):
+        fixed = plan(library, grid, onset, np.random.default_rng(seed), settings=Settings(energy_match=False))
+        matched = plan_at_clips_energy(library, grid, onset, np.random.default_rng(seed), None, Settings(), None,
+                                       None, None, None)
+        off = abs(np.log(dance_energy(library, grid, matched) / target))
+        assert off <= abs(np.log(dance_energy(library, grid, fixed) / target)) + 1e-9
+        assert off <= np.log(1.06), (seed, off)
