@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from dancenet_core.errors import DanceNetError
 from dancenet_core.jointmap import bone_directions, character_frame, min_rotation, rotation_part
 from dancenet_core.kinematics import fk_numpy
+from dancenet_core.rigmap import SPINE_JOINTS
 
 from . import rigcontrols, rigdef
 
@@ -102,7 +103,7 @@ def _travel_bone(rig: bpy.types.Object, bone_map: dict[str, str]) -> str:
     """The bone keyed with the body's travel: the hips bone, or, where the spine does not hang below it (MMD's
     上半身 and 下半身 both hang from センター), the nearest bone above both, so the whole body moves."""
     bones = rig.data.bones
-    spine = next(bone_map[j] for j in rigdef.SPINE_JOINTS if j in bone_map)
+    spine = next(bone_map[j] for j in SPINE_JOINTS if j in bone_map)
     above_spine = {b.name for b in bones[spine].parent_recursive}
     if bone_map["pelvis"] in above_spine:
         return bone_map["pelvis"]
@@ -248,7 +249,7 @@ def retarget(rig: bpy.types.Object, motion: Motion, bone_map: dict[str, str],
              parents: dict[str, str | None] | None = None) -> PoseTracks:
     """Pose tracks that make `rig` perform `motion`; `bone_map` maps joint names to existing bone names.
 
-    The map must contain the pelvis and the joints in `rigdef.REQUIRED_JOINTS` (see `bonemap.resolve`).
+    The map must contain the pelvis and the joints in `rigmap.REQUIRED_JOINTS` (see `rigmap.resolve`).
     Unmapped bones keep an identity pose and ride along with their parents. With `floor` = (root bone,
     floor points [T, 3], heading [T]) (see `rootmotion.split_root`), `motion` is the dance seen from the
     root bone, and the root bone is keyed to carry it along the floor. `parents` (mapped bone -> mapped bone)

@@ -10,9 +10,10 @@ import bpy
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
 
-from . import bonemap, export, job, library, pipeline, rig, rigchoice, takes
+from . import export, job, library, pipeline, rig, rigchoice, takes
 
 _REDRAW_AREAS = frozenset({"VIEW_3D", "SEQUENCE_EDITOR", "PREFERENCES"})
 
@@ -315,7 +316,7 @@ def _map_to_text(props: Any) -> bpy.types.Text:
     chosen = rigchoice.current_map(props)
     bones = dict(chosen.bones)
     if props.armature is not None:
-        found, _ = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
+        found, _ = rigmap.match(chosen, [b.name for b in props.armature.data.bones])
         bones = found | {j: b for j, b in chosen.bones.items() if j not in found}
     text = bpy.data.texts.new(f"{chosen.name} bone map.json")
     text.write(json.dumps({"name": f"{chosen.name} (edited)", "bones": bones}, indent=2) + "\n")
@@ -338,7 +339,7 @@ class DANCENET_OT_fix_bone(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             text = props.bone_map_text if props.bone_map == "TEXT" and props.bone_map_text else _map_to_text(props)
-            edited = bonemap.parse(text.as_string(), f"text '{text.name}'")
+            edited = rigmap.parse(text.as_string(), f"text '{text.name}'")
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -363,7 +364,7 @@ class DANCENET_OT_list_missing_joints(bpy.types.Operator):
         props = context.scene.dancenet
         try:
             chosen = rigchoice.current_map(props)
-            _, skipped = bonemap.resolve(chosen, [b.name for b in props.armature.data.bones], props.armature.name)
+            _, skipped = rigmap.resolve(chosen, [b.name for b in props.armature.data.bones], props.armature.name)
         except DanceNetError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

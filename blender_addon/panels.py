@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import bpy
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import panel_options
+from dancenet_core.rigmap import REQUIRED_JOINTS
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import bonemap, library, operators, properties, rigchoice, takes
+from . import library, operators, properties, rigchoice, takes
 from .menus import DANCENET_MT_presets
-from .rigdef import REQUIRED_JOINTS
 
 
 def _draw_analysis(layout: bpy.types.UILayout, analysis: dict) -> None:
@@ -32,7 +33,7 @@ def _draw_matches(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup) ->
     except DanceNetError as e:
         box.label(text=str(e), icon="ERROR")
         return
-    found, unmatched = bonemap.match(chosen, [b.name for b in props.armature.data.bones])
+    found, unmatched = rigmap.match(chosen, [b.name for b in props.armature.data.bones])
     missing = [j for j in REQUIRED_JOINTS if j not in found]
     box.prop(props, "show_matches", text=f"{chosen.name}: {len(found)} of {len(JOINT_NAMES)} joints matched",
              icon="TRIA_DOWN" if props.show_matches or missing else "TRIA_RIGHT", emboss=False)

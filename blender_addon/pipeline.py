@@ -15,10 +15,11 @@ from typing import Any
 
 import bpy
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
 from dancenet_core.request import DanceRequest, SectionOverride
 
-from . import bonemap, library, markers, rig, rigchoice, rigcontrols, rollback, song, takes, warming
+from . import library, markers, rig, rigchoice, rigcontrols, rollback, song, takes, warming
 from .job import Generator, error_message
 from .panelsettings import AS_DANCE, panel_settings
 
@@ -53,7 +54,7 @@ class Placement:
     """Where the result goes. Names, not bpy references: those can die while the generator runs."""
 
     armature: str | None = None  # None: build a new rig
-    bone_map: bonemap.BoneMap | None = None  # None with an armature: detect
+    bone_map: rigmap.BoneMap | None = None  # None with an armature: detect
     strip: str | None = None  # the sound strip playing the song; None: add the song as a new strip
     song_frame: float = 1.0  # where a new strip for the song starts (an existing strip's own place wins)
     add_markers: bool = True
@@ -173,7 +174,7 @@ def prepare_continue(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None) -
     request = DanceRequest(path, **settings, style=info["style"], start_s=info["start_s"], end_s=info["end_s"],
                            fps=fps, continue_from=takes.take_motion(action), at_s=(frame - first) / fps)
     request.check()
-    placement = Placement(armature=rig_obj.name, bone_map=bonemap.BoneMap(action.name, info["bone_map"]),
+    placement = Placement(armature=rig_obj.name, bone_map=rigmap.BoneMap(action.name, info["bone_map"]),
                           add_markers=False, frame_start=first, continues=action.name)
     return Plan(request, placement)
 
@@ -199,7 +200,7 @@ def prepare_redo(scene: bpy.types.Scene, rig_obj: bpy.types.Object | None, secti
     if own is not None and own.energy:
         request = replace(request, energy=own.energy)
     request.check()
-    placement = Placement(armature=rig_obj.name, bone_map=bonemap.BoneMap(action.name, info["bone_map"]),
+    placement = Placement(armature=rig_obj.name, bone_map=rigmap.BoneMap(action.name, info["bone_map"]),
                           add_markers=False, frame_start=first, continues=action.name, redo_section=section)
     return Plan(request, placement)
 

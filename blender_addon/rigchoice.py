@@ -9,11 +9,9 @@ from typing import Any
 
 import bpy
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
-
-from . import bonemap
-from .shapemap import RestBone
-from .vrmhumanoid import humanoid_map
+from dancenet_core.rigmap import RestBone, humanoid_map
 
 # Which part of the body an optional joint belongs to, for the one-line summary of those a rig lacks.
 _JOINT_GROUPS = (("fingers", ("index", "middle", "ring", "pinky", "thumb")), ("face", ("jaw", "eye")),
@@ -21,7 +19,7 @@ _JOINT_GROUPS = (("fingers", ("index", "middle", "ring", "pinky", "thumb")), ("f
 
 
 def missing_summary(skipped: list[str]) -> str:
-    """One line for the optional joints a rig lacks (`bonemap.resolve`'s "joint (bones)" entries), so the report
+    """One line for the optional joints a rig lacks (`rigmap.resolve`'s "joint (bones)" entries), so the report
     fits the status bar: "30 optional joints not on this rig (fingers: 30)"; the list is one click away."""
     counts: dict[str, int] = {}
     for entry in skipped:
@@ -34,11 +32,12 @@ def missing_summary(skipped: list[str]) -> str:
 
 
 def resolve_map(
-    rig_obj: bpy.types.Object, bone_map: bonemap.BoneMap | None
+    rig_obj: bpy.types.Object, bone_map: rigmap.BoneMap | None
 ) -> tuple[dict[str, str], list[str]]:
     """(joint -> bone, skipped optional joints) for an armature; DanceNetError if the map does not fit."""
-    chosen = bone_map or bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(), humanoid_map(rig_obj.data))
-    return bonemap.resolve(chosen, [b.name for b in rig_obj.data.bones], rig_obj.name)
+    chosen = bone_map or rigmap.auto_map(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(),
+                                         humanoid_map(rig_obj.data))
+    return rigmap.resolve(chosen, [b.name for b in rig_obj.data.bones], rig_obj.name)
 
 
 def check_rig(rig_obj: bpy.types.Object) -> None:
@@ -81,7 +80,7 @@ def saved_map_path(name: str) -> Path:
     return path
 
 
-def current_map(props: Any) -> bonemap.BoneMap:
+def current_map(props: Any) -> rigmap.BoneMap:
     """The bone map the panel's settings choose for the target armature (Auto: by names and shape, even when
     it does not fit, to start fixing from)."""
     chosen = chosen_map(props)
@@ -89,17 +88,17 @@ def current_map(props: Any) -> bonemap.BoneMap:
         return chosen
     rig_obj = props.armature
     if rig_obj is None or rig_obj.type != "ARMATURE":
-        return bonemap.load_shipped("SMPLX")
-    return bonemap.auto(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(), humanoid_map(rig_obj.data))
+        return rigmap.load_shipped("SMPLX")
+    return rigmap.auto_map(rest_bones(rig_obj), rig_obj.name, saved_maps_dir(), humanoid_map(rig_obj.data))
 
 
-def chosen_map(props: Any) -> bonemap.BoneMap | None:
+def chosen_map(props: Any) -> rigmap.BoneMap | None:
     if props.bone_map == "AUTO":
         return None
     if props.bone_map == "FILE":
-        return bonemap.load_file(bpy.path.abspath(props.bone_map_file))
+        return rigmap.load_file(bpy.path.abspath(props.bone_map_file))
     if props.bone_map == "TEXT":
         if props.bone_map_text is None:
             raise DanceNetError("Bone map 'Text' chosen but no text block picked")
-        return bonemap.parse(props.bone_map_text.as_string(), f"text '{props.bone_map_text.name}'")
-    return bonemap.load_shipped(props.bone_map)
+        return rigmap.parse(props.bone_map_text.as_string(), f"text '{props.bone_map_text.name}'")
+    return rigmap.load_shipped(props.bone_map)

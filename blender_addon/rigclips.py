@@ -28,12 +28,11 @@ from typing import TYPE_CHECKING
 import bpy
 import numpy as np
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError
-from dancenet_core.skeleton import JOINT_INDEX
+from dancenet_core.rigmap import humanoid_map
 
-from . import bonemap, rigchoice, song, takes
-from .rigdef import REQUIRED_JOINTS
-from .vrmhumanoid import humanoid_map
+from . import rigchoice, song, takes
 
 if TYPE_CHECKING:  # the library's build code is loaded when a library is built, not with the add-on
     from dancenet_core.library.build import ArmatureClip
@@ -74,18 +73,11 @@ def scratch_scene() -> Iterator[bpy.types.Scene]:
 
 
 def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
-    """Our joint index -> the rig's bone, by Auto's bone map; a one-line DanceNetError for an armature no bone map
-    reads as a humanoid."""
-    try:
-        mapping, _ = rigchoice.resolve_map(rig, None)
-    except DanceNetError as e:
-        auto = bonemap.auto(rigchoice.rest_bones(rig), rig.name, rigchoice.saved_maps_dir(), humanoid_map(rig.data))
-        found = bonemap.match(auto, rig.data.bones.keys())[0]
-        missing = [j.replace("_", " ") for j in REQUIRED_JOINTS if j not in found]
-        more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
-        raise DanceNetError(f"armature '{rig.name}' is not a humanoid: Auto's bone map finds no bone for "
-                            f"{', '.join(missing[:3])}{more}") from e
-    return {JOINT_INDEX[j]: b for j, b in mapping.items()}
+    """Our joint index -> the rig's bone, by Auto's bone map (the user's saved maps and the VRM add-on's assignments
+    count, as for a target rig); a one-line DanceNetError for an armature no bone map reads as a humanoid."""
+    bones = rigchoice.rest_bones(rig)
+    auto = rigmap.auto_map(bones, rig.name, rigchoice.saved_maps_dir(), humanoid_map(rig.data))
+    return rigmap.humanoid_joints(bones, f"armature '{rig.name}'", auto)
 
 
 def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str], frames: range, name: str,

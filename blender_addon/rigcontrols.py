@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, replace
 
-from .rigdef import REQUIRED_JOINTS
+from dancenet_core.rigmap import REQUIRED_JOINTS
 
 _SIDES = (("left", "L"), ("right", "R"))
 _FINGERS = ("index", "middle", "ring", "pinky", "thumb")

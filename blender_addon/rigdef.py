@@ -25,19 +25,6 @@ RIG_PROP = "dancenet_rig"
 ROOT_BONE = "root"
 ROOT_TAIL = (0.0, 0.0, 0.3)
 
-# Joints a bone map must name (and the rig must have) for a dance to read as that dance.
-REQUIRED_JOINTS: tuple[str, ...] = (
-    "pelvis", "neck", "head",
-    "left_hip", "left_knee", "left_ankle", "right_hip", "right_knee", "right_ankle",
-    "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
-)  # fmt: skip
-
-
-# The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
-# count of spine bones; the dance's turn of those a rig lacks is spread over those it has (keyframes.retarget).
-SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
-
-
 def rest_heads(skeleton: Skeleton) -> np.ndarray:
     """Joint positions [J, 3] in the core frame with the feet on the floor (y = 0) in the rest pose."""
     return skeleton.rest_positions() + np.array([0.0, skeleton.rest_pelvis_height(), 0.0])

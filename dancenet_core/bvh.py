@@ -393,13 +393,24 @@ def _motion_error(
     )
 
 
+def _text(raw: bytes) -> str:
+    """A BVH file's text: UTF-8, else Shift-JIS (MMD's Japanese bone names as Japanese tools write them), else
+    UTF-8 with what it cannot decode replaced (a name may then read wrong, the numbers still right)."""
+    for encoding in ("utf-8", "cp932"):
+        try:
+            return raw.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return raw.decode("utf-8", errors="replace")
+
+
 def read_bvh(path: str | Path) -> BvhData:
     """Read a BVH file; a malformed one raises `BvhParseError` (file:line: what was expected)."""
     path_ = Path(path)
     if not path_.is_file():
         raise BvhParseError(path, None, "BVH file not found")
     try:
-        lines = path_.read_text(encoding="utf-8", errors="replace").splitlines()
+        lines = _text(path_.read_bytes()).splitlines()
     except OSError as e:
         raise BvhParseError(path, None, f"cannot read the file: {e.strerror}") from e
     if not any(line.strip() for line in lines):

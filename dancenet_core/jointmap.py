@@ -1,6 +1,6 @@
 """Another rig's clip on our 55-joint skeleton by a joint-name map, without a fit: the pieces of retargeting that
-need no torch (a motion library build reads CMU clips with them in Blender; `data/retarget.py` adds the position
-fit that the training data uses).
+need no torch (a motion library build reads every clip with them, in Blender too: `armature_pose`;
+`data/retarget.py` adds the position fit that the training data's CMU clips get).
 
 A `JointMap` says which source joint each of our joints is; everything else (fingers, jaw, eyes) stays at rest.
 1. The source's world pose (`source_pose`), turned so that its up axis is our +Y (found from the data: the head
@@ -25,6 +25,8 @@ from .bvh import BvhData
 from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
+from .rigmap import load_shipped
+from .rootmotion import UNITS
 from .skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, EndSite, Skeleton
 
 
@@ -47,16 +49,12 @@ class JointMap:
                              f"unknown: {unknown}")
 
 
-# CMU clips as AMASS writes them: the 22 SMPL body joints under CMU's names. Their toe joint is the ball
-# of the foot (our `foot`) and their upper neck is the head joint.
-CMU = JointMap("CMU", {
-    "pelvis": "root", "left_hip": "lhip", "right_hip": "rhip", "spine1": "lowerback",
-    "left_knee": "lknee", "right_knee": "rknee", "spine2": "upperback", "left_ankle": "lankle",
-    "right_ankle": "rankle", "spine3": "chest", "left_foot": "ltoe", "right_foot": "rtoe",
-    "neck": "lowerneck", "left_collar": "lclavicle", "right_collar": "rclavicle", "head": "upperneck",
-    "left_shoulder": "lshoulder", "right_shoulder": "rshoulder", "left_elbow": "lelbow",
-    "right_elbow": "relbow", "left_wrist": "lwrist", "right_wrist": "rwrist",
-})  # fmt: skip
+# CMU clips as AMASS writes them: the shipped CMU bone map (the 22 SMPL body joints under CMU's names).
+CMU = JointMap("CMU", {j: str(b) for j, b in load_shipped("CMU").bones.items()})
+
+# Metres per unit a rig's rest pose may come in: metres, centimetres, millimetres, inches, and a centimetre rig's
+# 0.01 scale applied twice.
+RIG_UNITS: tuple[float, ...] = (*(m for _, m in UNITS), 100.0)
 
 # Rotations that turn a world whose up axis is (axis, sign) into our Y-up world.
 _UP_TO_Y = {
@@ -360,10 +358,11 @@ def rotation_part(m: np.ndarray) -> np.ndarray:
 def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: float, name: str) -> SourcePose:
     """A rig's clip as sampled in Blender, on our terms: `joints` our joints the rig has bones for, `rest`
     [K, 4, 4] each one's bone's world rest matrix and `pose` [T, K, 4, 4] its world matrix per frame (Blender's
-    bone convention: the head at the translation, the Y axis along the bone; metres, the object's scale included),
+    bone convention: the head at the translation, the Y axis along the bone; the object's scale included),
     at `fps`. Any up axis and facing (read from the rest pose: the spine is up, the hips say left), any rest pose:
     our joint's world rotation is the bone's turn from its rest, then our T-pose bone turned onto the rig's rest
-    bone (`rest_turns`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose."""
+    bone (`rest_turns`), so an A-pose rest (Rigify's metarig, MPFB, CC) reads as right as a T-pose. Lengths are
+    read in the unit that makes the rig a dancer's size (`rest_unit`)."""
     need = [n for n in ("pelvis", "left_hip", "right_hip", "neck") if JOINT_INDEX[n] not in joints]
     if need:
         raise RetargetError(f"{name}: a rig's clip needs bones for the pelvis, hips and neck; missing: "
@@ -375,14 +374,24 @@ def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: fl
     col = {j: k for k, j in enumerate(ours)}
     frame = character_frame(*(heads[col[JOINT_INDEX[n]]] for n in ("left_hip", "right_hip", "pelvis", "neck")))
     to_ours = frame.T  # the rig's world -> ours: its left, up and front become our +X, +Y and +Z
-    rest_heads = heads @ to_ours.T
-    height = float(np.ptp(rest_heads[:, 1]))
-    if not 0.5 < height < 2.5:
-        raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} m tall; a dancer is 0.5-2.5 m (give the "
-                            "armature object a scale that makes its bones metres)")
+    metres = rest_unit(heads @ to_ours.T, ours, name)
+    rest_heads = heads @ to_ours.T * metres
     axes = rotation_part(rest)[:, :, 1] @ to_ours.T
     turn = rest_turns(DEFAULT_SKELETON, {j: rest_heads[k] for k, j in enumerate(ours)},
                       {j: axes[k] for k, j in enumerate(ours)})
     turns = np.stack([turn[j] for j in ours])
     from_rest = to_ours @ rotation_part(pose) @ np.swapaxes(rotation_part(rest), -1, -2) @ to_ours.T
-    return SourcePose(ours, pose[..., :3, 3] @ to_ours.T, from_rest @ turns, rest_heads, fps, turns)
+    return SourcePose(ours, pose[..., :3, 3] @ to_ours.T * metres, from_rest @ turns, rest_heads, fps, turns)
+
+
+def rest_unit(heads: np.ndarray, joints: list[int], name: str) -> float:
+    """Metres per unit of a rig's rest pose (`heads` [K, 3] of our `joints`, Y up): the unit of `RIG_UNITS` that
+    makes it nearest our dancer's size, for a file in centimetres, millimetres or inches, or an FBX rig whose 0.01
+    scale was applied twice or not at all; a one-line RetargetError when none makes it a dancer's 0.5-2.5 m."""
+    height = float(np.ptp(heads[:, 1]))
+    ours = float(np.ptp(DEFAULT_SKELETON.rest_positions()[joints, 1]))
+    metres = min(RIG_UNITS, key=lambda m: abs(np.log(max(height, 1e-12) * m / ours)))
+    if not 0.5 < height * metres < 2.5:
+        raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} units tall, which no unit (metres, "
+                            "centimetres, millimetres, inches) makes a dancer's 0.5-2.5 m")
+    return metres

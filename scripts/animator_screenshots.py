@@ -26,6 +26,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "scripts"), str(ROOT / "tests" / "addon")]
 from doubles import convention_rest  # noqa: E402 (the DAZ-like rig the landing test builds)
 from panel_screenshot import paint, record_panel, song_in_project  # noqa: E402
 
+from dancenet_core import rigmap  # noqa: E402
+
 DAZ_TWISTS = {"left_shoulder": "lShldrTwist", "right_shoulder": "rShldrTwist", "left_elbow": "lForearmTwist",
               "right_elbow": "rForearmTwist", "left_hip": "lThighTwist", "right_hip": "rThighTwist"}
 
@@ -130,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     assert bpy.ops.dancenet.continue_dance() == {"FINISHED"}
     shot("2_continue.png")
 
-    daz = blender_addon.bonemap.load_shipped("DAZ").bones
+    daz = rigmap.load_shipped("DAZ").bones
     rows = convention_rest(daz, a_pose_deg=45.0, splits=DAZ_TWISTS)
     # One bone renamed by hand, as rigs often have: Auto finds it by the skeleton's shape, and the panel says so.
     rows = [tuple("lElbow_custom" if x == "lForearmBend" else x for x in row[:2]) + row[2:] for row in rows]

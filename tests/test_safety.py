@@ -453,14 +453,10 @@ def test_bad_motion_files_given_to_render_are_one_line(tmp_path: Path, capsys: p
 
 
 def test_bone_map_that_is_not_utf8_is_one_line(tmp_path: Path) -> None:
-    import importlib.util
-
-    if importlib.util.find_spec("bpy") is None:
-        pytest.skip("bpy not installed")
-    from blender_addon import bonemap
+    from dancenet_core import rigmap
 
     path = tmp_path / "map.json"
     path.write_bytes(b'{"bones": {"pelvis": "Hips\xff\xfe"}}')
     with pytest.raises(DanceNetError) as e:
-        bonemap.load_file(path)
+        rigmap.load_file(path)
     assert "not UTF-8" in one_line(e.value)

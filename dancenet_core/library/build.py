@@ -1,11 +1,10 @@
 """`dancenet library build FOLDER`: a folder of BVH clips read onto our skeleton and analysed into a motion library
 (`library/store.py`), once per content of the folder.
 
-A clip is read when it holds our 55 joints (`dancenet generate`'s BVH, with or without a root bone, in metres,
-centimetres, millimetres or inches: `rootmotion.read_dance_bvh`) or CMU's joint names (as AMASS writes them, in
-metres or centimetres: retargeted by the CMU joint map, `jointmap.py`). Either may be Y- or Z-up (the head above
-the pelvis tells). CMU clips take each mapped joint's world rotation (the rest poses agree), without the dataset
-build's position fit: the fit needs torch and about 35 s per minute of motion, this a fraction of a second.
+A BVH clip is read when its skeleton is a humanoid's (`bvhclip.py`): the bone mapper the add-on drives rigs with
+(`rigmap`) finds our joints in it by their names (Mixamo, VRM, Unreal, Character Creator, Rokoko, DAZ, MMD, Rigify,
+generic names, CMU's, ours: the shipped bone maps) or by the skeleton's shape, and its motion is read like a rig's in
+Blender (`jointmap.armature_pose`): any rest pose, any up axis and facing, in the unit that makes it a dancer's size.
 In Blender, a clip may also be a rig's animation (an FBX file of the folder, or an action of the open file): the
 add-on samples each mapped bone's world matrices (`ArmatureClip`), and `armature_motion` reads them onto our
 skeleton whatever the rig's rest pose (`jointmap.armature_pose`). The command line, without Blender, reads no FBX:
@@ -13,7 +12,8 @@ a folder holding some answers so in one line.
 Clips are resampled to the library's 25 fps and put on the floor (`floor.floor_track`). A clip's style is its
 folder's name below FOLDER, or the `style` column of a `manifest.csv` in FOLDER (columns `file`, `style`, and
 optionally `bpm` and `meter`: the clip's tempo and beats per bar, taken over what `analysis.py` reads from the
-motion).
+motion; `bonemap`: a bone map's JSON file in FOLDER for a skeleton Auto does not read, for the clip, or for every
+clip on a row whose `file` is `*`).
 Anything else in the folder is left out with a one-line note.
 
 Torch-free and without the data package (the add-on's Build Library runs it inside Blender on a worker thread:
@@ -28,58 +28,26 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from ..bvh import read_bvh
 from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..floor import floor_track
-from ..jointmap import CMU, armature_pose, rotation_motion, source_pose, up_rotation
-from ..kinematics import fk_numpy
+from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rootmotion import UNITS, read_dance_bvh
-from ..skeleton import JOINT_INDEX, JOINT_NAMES
+from ..rigmap import BoneMap, load_file
 from .analysis import ClipAnalysis, analyze_clip
+from .bvhclip import bvh_rig
 from .match import frames_of
 from .store import LIBRARY_FPS, MotionLibrary, built_path, clip_files, library_path
 
 MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
-DANCER_HEIGHT_M = 1.7  # the unit of a CMU clip is the one that makes its rest pose nearest this tall
 
 
-def _upright(motion: Motion) -> Motion:
-    """The motion turned so that its up axis (head above pelvis) is +Y."""
-    pos = fk_numpy(motion.skeleton, motion.rotations[::10], motion.root_positions[::10])[0]
-    turn = up_rotation(pos, JOINT_INDEX["pelvis"], JOINT_INDEX["head"])
-    if np.allclose(turn.as_matrix(), np.eye(3)):
-        return motion
-    rot = motion.rotations.copy()
-    rot[:, 0] = (turn * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
-    root = turn.apply(motion.root_positions + motion.skeleton.offsets[0]) - motion.skeleton.offsets[0]
-    return Motion(rot, root, motion.fps, motion.skeleton)
-
-
-def _cmu_clip(path: Path) -> Motion:
-    """A CMU-named clip on our skeleton: each mapped joint gets the source joint's world rotation."""
-    data = read_bvh(path)
-    tall = float(np.ptp(data.to_motion().skeleton.rest_positions(), axis=0).max())
-    unit = min(UNITS, key=lambda u: abs(np.log(max(tall, 1e-9) * u[1] / DANCER_HEIGHT_M)))[1]
-    return rotation_motion(source_pose(data, replace(CMU, scale=unit), LIBRARY_FPS, path.name))
-
-
-def read_clip(path: Path) -> Motion:
-    """A clip of the folder on our 55 joints: metres, Y up, 25 fps, feet on the floor; a one-line DanceNetError
-    when it is none of the skeletons the library reads."""
-    data = read_bvh(path)
-    names = set(data.names)
-    if names >= set(JOINT_NAMES):
-        motion = _upright(read_dance_bvh(path))
-    elif names >= set(CMU.joints.values()):
-        motion = _cmu_clip(path)
-    else:
-        raise DanceNetError(f"{path.name}: not a skeleton the library reads (DanceNet's 55 joints or CMU's names; "
-                            f"this one has {len(data.names)} joints: {', '.join(data.names[:6])}...)")
-    return _as_clip(motion, path.name)
+def read_clip(path: Path, bone_map: BoneMap | None = None) -> Motion:
+    """A BVH clip of the folder on our 55 joints: metres, Y up, 25 fps, feet on the floor; a one-line DanceNetError
+    when its skeleton is no humanoid's (by `bone_map` if given, else by Auto: `bvhclip.bvh_rig`)."""
+    rig = bvh_rig(path, bone_map)
+    return _as_clip(rotation_motion(armature_pose(rig.joints, rig.rest, rig.pose, rig.fps, path.name)), path.name)
 
 
 def _as_clip(motion: Motion, name: str) -> Motion:
@@ -122,6 +90,7 @@ class ClipHints:
     style: str = ""
     bpm: float | None = None
     meter: int | None = None
+    bone_map: BoneMap | None = None  # the manifest's `bonemap` (else Auto reads the skeleton)
 
 
 MANIFEST_BPM = (30.0, 300.0)
@@ -148,8 +117,8 @@ def _manifest_number(folder: Path, line: int, column: str, text: str) -> float |
 
 
 def clip_hints(folder: Path, files: list[Path]) -> dict[Path, ClipHints]:
-    """Each clip's hints: the manifest's `style`, `bpm` and `meter` for its `file`, the style else the name of its
-    folder below `folder`."""
+    """Each clip's hints: the manifest's `style`, `bpm`, `meter` and `bonemap` for its `file` (the `bonemap` of a
+    row whose file is `*` for every clip that names none), the style else the name of its folder below `folder`."""
     hints = {f: ClipHints(f.relative_to(folder).parts[0] if len(f.relative_to(folder).parts) > 1 else "")
              for f in files}
     manifest = folder / "manifest.csv"
@@ -157,13 +126,26 @@ def clip_hints(folder: Path, files: list[Path]) -> dict[Path, ClipHints]:
         with open(manifest, newline="") as f:
             for line, row in enumerate(csv.DictReader(f), start=2):
                 path = folder / str(row.get("file") or "")
+                bone_map = _manifest_map(folder, line, str(row.get("bonemap") or ""))
+                if str(row.get("file") or "").strip() == "*":
+                    hints = {f: h if h.bone_map else replace(h, bone_map=bone_map) for f, h in hints.items()}
                 if path not in hints:
                     continue
                 bpm = _manifest_number(folder, line, "bpm", str(row.get("bpm") or ""))
                 meter = _manifest_number(folder, line, "meter", str(row.get("meter") or ""))
                 hints[path] = ClipHints(str(row.get("style") or "").strip() or hints[path].style, bpm,
-                                        None if meter is None else int(meter))
+                                        None if meter is None else int(meter), bone_map or hints[path].bone_map)
     return hints
+
+
+def _manifest_map(folder: Path, line: int, name: str) -> BoneMap | None:
+    """The bone map a manifest cell names (None when empty); a one-line DanceNetError when it cannot be read."""
+    if not name.strip():
+        return None
+    try:
+        return load_file(folder / name.strip())
+    except DanceNetError as e:
+        raise DanceNetError(f"{folder / 'manifest.csv'}, line {line}: {first_line(e)}") from e
 
 
 def is_fbx(path: Path) -> bool:
@@ -206,7 +188,8 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     hints = clip_hints(folder, files)
     clips, notes = _read_clips(
         [(f.name, str(f.relative_to(folder)), hints[f],
-          lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f)) for f in files],
+          lambda f=f: _fbx_clip(f, (fbx or {}).get(f)) if is_fbx(f) else read_clip(f, hints[f].bone_map))
+         for f in files],
         report, progress, should_cancel)
     if not clips:
         first = notes[0].removeprefix("left out ")

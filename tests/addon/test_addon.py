@@ -35,6 +35,7 @@ from scene_helpers import (
     world_heads,
 )
 
+from dancenet_core import rigmap
 from dancenet_core.errors import DanceNetError, GenerationCancelled
 from dancenet_core.skeleton import DEFAULT_SKELETON, JOINT_NAMES
 
@@ -105,9 +106,9 @@ def test_mixamo_rig_in_a_pose_follows_the_dance(scene, addon):
     scene.render.fps = 30
     rig = build_armature("Mixamo Dancer", mixamo_rest(prefix="mixamorig1:", scale=0.9))
     names = [b.name for b in rig.data.bones]
-    chosen = addon.bonemap.detect(names, rig.name)
+    chosen = rigmap.detect(names, rig.name)
     assert chosen.name == "Mixamo"
-    mapping, skipped = addon.bonemap.resolve(chosen, names, rig.name)
+    mapping, skipped = rigmap.resolve(chosen, names, rig.name)
     assert mapping["pelvis"] == "mixamorig1:Hips"
     assert mapping["left_elbow"] == "mixamorig1:LeftForeArm"
     assert "left_middle1 (mixamorig:LeftHandMiddle1)" in skipped
@@ -118,7 +119,7 @@ def test_mixamo_rig_in_a_pose_follows_the_dance(scene, addon):
 
 
 def test_rigify_deform_bones_are_driven_over_their_constraints(scene, addon, song):
-    rigify = addon.bonemap.load_shipped("RIGIFY")
+    rigify = rigmap.load_shipped("RIGIFY")
     rig = build_armature("rig", rigify_rest(rigify.bones), mixamo_import=False)
     for bone in rigify.bones.values():
         rig.pose.bones[bone].constraints.new("COPY_TRANSFORMS")  # as Rigify's DEF bones follow ORG bones
@@ -148,8 +149,8 @@ def test_missing_bones_are_named(scene, addon, song):
     bones = [(n, "mixamorig:Hips" if p == "mixamorig:RightUpLeg" else p, h, t) for n, p, h, t in bones]
     rig = build_armature("Incomplete", bones)
     with pytest.raises(DanceNetError) as err:
-        addon.bonemap.resolve(
-            addon.bonemap.load_shipped("MIXAMO"), [b.name for b in rig.data.bones], rig.name
+        rigmap.resolve(
+            rigmap.load_shipped("MIXAMO"), [b.name for b in rig.data.bones], rig.name
         )
     message = str(err.value)
     assert "left_elbow ('mixamorig:LeftForeArm' not in the armature)" in message
@@ -166,11 +167,11 @@ def test_missing_bones_are_named(scene, addon, song):
 
 
 def test_shipped_bone_maps_name_known_joints(addon):
-    for key in addon.bonemap.SHIPPED:
-        bone_map = addon.bonemap.load_shipped(key)
+    for key in rigmap.SHIPPED:
+        bone_map = rigmap.load_shipped(key)
         assert set(bone_map.bones) <= set(JOINT_NAMES)
-        assert set(addon.rigdef.REQUIRED_JOINTS) <= set(bone_map.bones)
-    assert all(b.startswith("DEF-") for b in addon.bonemap.load_shipped("RIGIFY").bones.values())
+        assert set(rigmap.REQUIRED_JOINTS) <= set(bone_map.bones)
+    assert all(b.startswith("DEF-") for b in rigmap.load_shipped("RIGIFY").bones.values())
 
 
 def test_a_bad_saved_bone_map_is_left_out_with_a_notice(addon, tmp_path, capsys):
@@ -186,13 +187,13 @@ def test_a_bad_saved_bone_map_is_left_out_with_a_notice(addon, tmp_path, capsys)
         (saved / name).write_text(text, encoding="latin-1")
     (saved / "folder.json").mkdir()
     capsys.readouterr()
-    assert [m.name for m in addon.bonemap.user_maps(saved)] == ["Good"]
+    assert [m.name for m in rigmap.user_maps(saved)] == ["Good"]
     notices = capsys.readouterr().err.strip().splitlines()
     assert sorted(line.split()[4] for line in notices) == sorted([*bad, "folder.json"]), notices
-    assert addon.bonemap.detect(list(JOINT_NAMES), "rig", saved).bones  # Auto still works
+    assert rigmap.detect(list(JOINT_NAMES), "rig", saved).bones  # Auto still works
     for name in ("deep.json", "digits.json"):
         with pytest.raises(DanceNetError) as info:
-            addon.bonemap.load_file(saved / name)
+            rigmap.load_file(saved / name)
         assert "\n" not in str(info.value)
 
 

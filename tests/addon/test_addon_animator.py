@@ -11,6 +11,8 @@ from doubles import CALLS, convention_rest, make_fake_generator, mixamo_rest, sy
 from made_up import click_song
 from scene_helpers import bpy, build_armature, fk_world, panel_screenshot, snapshot, world_heads
 
+from dancenet_core import rigmap
+
 
 def test_panel_frame_rate_is_the_scenes_and_the_keys_follow_it(scene, addon, song):
     scene.render.fps = 50
@@ -503,16 +505,16 @@ def landing_error(rig, mapping: dict[str, str], motion, first_frame: int) -> flo
 def test_every_convention_is_mapped_automatically_and_lands(scene, addon, song, convention):
     key = convention.split()[0]
     layout = CONVENTIONS[convention]
-    rows = convention_rest(addon.bonemap.load_shipped(key).bones, scale=0.92, arm_scale=1.04, leg_scale=0.97,
+    rows = convention_rest(rigmap.load_shipped(key).bones, scale=0.92, arm_scale=1.04, leg_scale=0.97,
                            **layout)
     rig = build_armature(f"{convention} rig", rows, mixamo_import=False, seed=len(convention))
     names = [b.name for b in rig.data.bones]
-    chosen = addon.bonemap.detect(names, rig.name)
-    mapping, _skipped = addon.bonemap.resolve(chosen, names, rig.name)
-    assert chosen.name == addon.bonemap.load_shipped(key).name
+    chosen = rigmap.detect(names, rig.name)
+    mapping, _skipped = rigmap.resolve(chosen, names, rig.name)
+    assert chosen.name == rigmap.load_shipped(key).name
     expected = layout.get("names") or {j: b if isinstance(b, str) else b[0]
-                                       for j, b in addon.bonemap.load_shipped(key).bones.items()}
-    assert all(mapping[j] == expected[j] for j in addon.rigdef.REQUIRED_JOINTS)  # no manual edit
+                                       for j, b in rigmap.load_shipped(key).bones.items()}
+    assert all(mapping[j] == expected[j] for j in rigmap.REQUIRED_JOINTS)  # no manual edit
     scene.render.fps = 30
     props = scene.dancenet
     props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
@@ -545,11 +547,11 @@ def meaningless(rows, seed: int) -> tuple[list, dict[str, str]]:
 @pytest.mark.parametrize("convention", list(CONVENTIONS))
 def test_the_skeletons_shape_finds_the_body_joints_of_each_convention_whatever_the_names(addon, convention):
     """Plain bone lists: each convention's rig with meaningless names, in a random order, facing another way."""
-    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+    from dancenet_core.rigmap import BODY_JOINTS, RestBone, match_shape
 
     key = convention.split()[0]
     layout = CONVENTIONS[convention]
-    shipped = addon.bonemap.load_shipped(key).bones
+    shipped = rigmap.load_shipped(key).bones
     names = layout.get("names") or {j: b if isinstance(b, str) else b[0] for j, b in shipped.items()}
     rows = convention_rest(shipped, scale=0.92, arm_scale=1.04, leg_scale=0.97, **layout)
     for degrees in (0.0, 90.0, 200.0):
@@ -561,17 +563,17 @@ def test_the_skeletons_shape_finds_the_body_joints_of_each_convention_whatever_t
 def test_the_skeletons_shape_reads_a_mixamo_import_and_refuses_what_is_no_humanoid(addon):
     """A Y-up centimetre Mixamo skeleton turned Z-up (as its object shows it), one finger, a head-top end bone;
     then a chain, one bone, no bones, a one-legged rig."""
-    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+    from dancenet_core.rigmap import BODY_JOINTS, RestBone, match_shape
 
     z_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]) * 0.01
     rows = [(b, p, z_up @ np.asarray(h), z_up @ np.asarray(t)) for b, p, h, t in mixamo_rest(prefix="")]
-    shipped = addon.bonemap.load_shipped("MIXAMO").bones
+    shipped = rigmap.load_shipped("MIXAMO").bones
     found = match_shape([RestBone(*r) for r in rows])
     assert found == {j: shipped[j].split(":")[1] for j in BODY_JOINTS}
 
     chain = [RestBone(f"b{i}", f"b{i - 1}" if i else None, (0, 0, i), (0, 0, i + 1)) for i in range(12)]
     assert match_shape(chain) == {} and match_shape(chain[:1]) == {} and match_shape([]) == {}
-    daz = addon.bonemap.load_shipped("DAZ")
+    daz = rigmap.load_shipped("DAZ")
     one_leg = [r for r in convention_rest(daz.bones) if not r[0].startswith("r") or r[0].startswith("rCollar")
                or r[0] in ("rShldrBend", "rForearmBend", "rHand")]  # fmt: skip
     assert match_shape([RestBone(*r) for r in one_leg]) == {}
@@ -580,9 +582,9 @@ def test_the_skeletons_shape_reads_a_mixamo_import_and_refuses_what_is_no_humano
 def test_the_skeletons_shape_holds_over_random_proportions_poses_and_extra_bones(addon):
     """60 random SMPL-X-shaped rigs: size, limb lengths, A-pose, twist bones in and beside the chains, a root
     bone, a head-top end bone, fingers or none, facing any way: every body joint is found."""
-    from blender_addon.shapemap import BODY_JOINTS, RestBone, match_shape
+    from dancenet_core.rigmap import BODY_JOINTS, RestBone, match_shape
 
-    smplx = addon.bonemap.load_shipped("SMPLX").bones
+    smplx = rigmap.load_shipped("SMPLX").bones
     rng = np.random.default_rng(18)
     limbs = [f"{side}_{j}" for side in ("left", "right") for j in ("shoulder", "elbow", "hip", "knee")]
     for trial in range(60):
@@ -604,16 +606,16 @@ def test_the_skeletons_shape_holds_over_random_proportions_poses_and_extra_bones
 
 
 def test_auto_goes_by_names_first_and_by_shape_for_what_they_leave_out(addon):
-    from blender_addon.shapemap import RestBone
+    from dancenet_core.rigmap import RestBone
 
-    daz = addon.bonemap.load_shipped("DAZ")
+    daz = rigmap.load_shipped("DAZ")
     rows = convention_rest(daz.bones, a_pose_deg=45.0)
-    chosen = addon.bonemap.auto([RestBone(*r) for r in rows], "Genesis")
+    chosen = rigmap.auto_map([RestBone(*r) for r in rows], "Genesis")
     assert chosen.name == daz.name and not chosen.by_shape  # the names found every body joint
     rows = renamed(rows, {"lForearmBend": "lLowerArmX", "neckLower": "Hals"})
-    chosen = addon.bonemap.auto([RestBone(*r) for r in rows], "Genesis")
+    chosen = rigmap.auto_map([RestBone(*r) for r in rows], "Genesis")
     assert chosen.name == f"{daz.name} + shape" and chosen.by_shape == {"left_elbow", "neck"}
-    found, _ = addon.bonemap.resolve(chosen, [r[0] for r in rows], "Genesis")
+    found, _ = rigmap.resolve(chosen, [r[0] for r in rows], "Genesis")
     assert found["left_elbow"] == "lLowerArmX" and found["neck"] == "Hals" and found["left_wrist"] == "lHand"
 
 
@@ -641,7 +643,7 @@ def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon,
     shape, the panel says so, and feet, hands and head land within 1.7% (T-pose) and 3.2% (A-pose) of body height
     of the dance (docs/animators.md)."""
     names, layout = _SHAPE_ONLY[rig_kind]
-    smplx = addon.bonemap.load_shipped("SMPLX").bones
+    smplx = rigmap.load_shipped("SMPLX").bones
     rows = convention_rest(smplx, names=names or None, **layout)
     if names:  # stored like an FBX import: Y-up centimetres, the object turns and scales it back
         y_up = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]) * 100.0
@@ -657,11 +659,11 @@ def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon,
     props.show_matches = True
     shot = panel_screenshot()
     shown = {w.text: w for w in shot.walk(shot.record_panel(bpy.context, addon.panels.CLASSES[0]))}
-    for joint in addon.rigdef.REQUIRED_JOINTS:
+    for joint in rigmap.REQUIRED_JOINTS:
         assert shown[f"{joint.replace('_', ' ')}: {expected[joint]} (by shape)"].icon == "CHECKMARK"
     assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
     mapping, _ = addon.rigchoice.resolve_map(rig, None)
-    assert {j: mapping[j] for j in addon.shapemap.BODY_JOINTS} == {j: expected[j] for j in addon.shapemap.BODY_JOINTS}
+    assert {j: mapping[j] for j in rigmap.BODY_JOINTS} == {j: expected[j] for j in rigmap.BODY_JOINTS}
     error = landing_error(rig, mapping, synthetic_motion(2.0, seed=0), scene.frame_start)
     LANDING[f"shape only, {rig_kind}"] = error
     assert error < SHAPE_ONLY_LANDING[rig_kind], error
@@ -669,7 +671,7 @@ def test_a_rig_with_names_no_rule_knows_dances_mapped_by_its_shape(scene, addon,
 
 def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, song):
     # A DAZ-like rig without a neck bone (no name or shape finds one): the panel says what is missing.
-    daz = addon.bonemap.load_shipped("DAZ")
+    daz = rigmap.load_shipped("DAZ")
     rows = [(b, "chestUpper" if b == "head" else p, h, t) for b, p, h, t in convention_rest(daz.bones, a_pose_deg=45.0)
             if b != "neckLower"]  # fmt: skip
     props = scene.dancenet
@@ -706,7 +708,7 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
     saved = addon.rigchoice.saved_maps_dir() / "Genesis_custom.json"
     assert saved.is_file()
     rig2 = build_armature("Genesis 2", rows, mixamo_import=False)
-    chosen = addon.bonemap.detect([b.name for b in rig2.data.bones], rig2.name, addon.rigchoice.saved_maps_dir())
+    chosen = rigmap.detect([b.name for b in rig2.data.bones], rig2.name, addon.rigchoice.saved_maps_dir())
     assert chosen.name == "Genesis custom"
     assert chosen.bones["left_elbow"] == "lForearmTwist"
     saved.unlink()
@@ -715,10 +717,10 @@ def test_panel_shows_the_matches_fixes_a_bone_and_saves_the_map(scene, addon, so
 def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsys):
     """The real dance on a DAZ-named A-pose rig with twist bones and its own proportions: Auto maps it and
     the feet, hands and head land within 2.5% of its height of where the dance puts them (2.0% measured)."""
-    from blender_addon import bonemap, takes
+    from blender_addon import takes
     from dancenet_core.engines.dancenet import load_bundle
 
-    daz = bonemap.load_shipped("DAZ")
+    daz = rigmap.load_shipped("DAZ")
     twists = {"left_shoulder": "lShldrTwist", "right_elbow": "rForearmTwist", "left_hip": "lThighTwist"}
     # Proportions near the model's dancer: judged against the dance scaled to the rig's height, a rig whose
     # torso-to-leg ratio is far from the dancer's cannot land head and feet at once (see docs/animators.md).
@@ -728,7 +730,7 @@ def test_shipped_model_dances_on_a_daz_rig_in_a_pose(real_scene, tmp_path, capsy
     props = real_scene.dancenet
     props.music_file, props.target, props.armature = str(click_song(tmp_path / "clicks.wav", 8.0, 110)), "EXISTING", rig
     assert bpy.ops.dancenet.generate() == {"FINISHED"}
-    mapping, _ = bonemap.resolve(bonemap.detect([b.name for b in rig.data.bones], rig.name), [b.name for b in
+    mapping, _ = rigmap.resolve(rigmap.detect([b.name for b in rig.data.bones], rig.name), [b.name for b in
                                                                                             rig.data.bones], rig.name)
     dance = takes.take_motion(rig.animation_data.action).resampled(24)
     error = landing_error(rig, mapping, dance, real_scene.frame_start)
@@ -744,10 +746,10 @@ def test_hands_and_feet_reach_the_dance_on_a_rig_of_other_proportions(scene, add
     from blender_addon import keyframes, rigdef
     from dancenet_core.skeleton import DEFAULT_SKELETON
 
-    daz = addon.bonemap.load_shipped("DAZ")
+    daz = rigmap.load_shipped("DAZ")
     rig = build_armature("Long arms", convention_rest(daz.bones, arm_scale=1.15, leg_scale=0.85, a_pose_deg=45.0),
                          mixamo_import=False, seed=3)
-    mapping, _ = addon.bonemap.resolve(daz, [b.name for b in rig.data.bones], rig.name)
+    mapping, _ = rigmap.resolve(daz, [b.name for b in rig.data.bones], rig.name)
     motion = synthetic_motion(1.0, seed=4)
     keyframes.apply_motion(rig, motion, mapping, "take", 1, 30.0)
     ours = rigdef.rest_heads(DEFAULT_SKELETON) @ rigdef.Y_UP_TO_Z_UP.T

@@ -13,6 +13,8 @@ from doubles import convention_rest, synthetic_motion
 from mathutils import Quaternion
 from scene_helpers import bpy, build_armature, fcurves_of, fk_world, world_heads
 
+from dancenet_core import rigmap
+
 FEET = ("left_ankle", "right_ankle", "left_foot", "right_foot")
 LEGS = ("pelvis", *FEET, "left_hip", "right_hip", "left_knee", "right_knee")
 
@@ -93,7 +95,7 @@ def test_rigify_rig_dances_on_its_controls(scene, addon, song, rigify_rig, monke
     props.music_source, props.music_file, props.target, props.armature = "FILE", str(song), "EXISTING", rig
     assert bpy.ops.dancenet.generate() == {"FINISHED"}  # bone map: Auto
     names = [b.name for b in rig.data.bones]
-    mapping, _ = addon.bonemap.resolve(addon.bonemap.detect(names, rig.name), names, rig.name)
+    mapping, _ = rigmap.resolve(rigmap.detect(names, rig.name), names, rig.name)
     assert mapping["left_ankle"] == "DEF-foot.L"
 
     # Keys only on controls: the FK and torso controls, and the limbs' IK/FK switches (on FK).

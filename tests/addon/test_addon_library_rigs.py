@@ -241,8 +241,8 @@ def test_bad_actions_and_files_are_one_line(scene, addon, own_cache, tmp_path):
     library = MotionLibrary.load(addon.library.chosen_library(props))
     assert library.names == ["hustle_one"]
     snake, blip = library.notes
-    assert snake == ("left out snake_wiggle: armature 'Snake' is not a humanoid: Auto's bone map finds no bone for "
-                     "pelvis, neck, head and 12 more"), snake
+    assert snake == ("left out snake_wiggle: armature 'Snake': not a humanoid skeleton (3 bones: a, b, c): no legs; "
+                     "no arms; no bone for pelvis, neck, head"), snake
     assert blip == "left out blip: 0.48 s, too short to hold a bar"
 
     # A Library folder: an FBX file with a mesh and no armature, beside a BVH clip; then that FBX alone.

@@ -11,6 +11,7 @@ from doubles import convention_rest, synthetic_motion
 from scene_helpers import bpy, build_armature, fcurves_of
 from test_addon_animator import CONVENTIONS, landing_error
 
+from dancenet_core import rigmap
 from dancenet_core.skeleton import DEFAULT_SKELETON
 
 
@@ -32,7 +33,7 @@ def dance_under_auto(scene, song, rig) -> dict[str, str]:
 
 
 def test_a_character_creator_rig_without_a_waist_dances_under_auto(scene, addon, song):
-    cc = addon.bonemap.load_shipped("CC")
+    cc = rigmap.load_shipped("CC")
     rows = without(convention_rest(cc.bones, scale=0.92, arm_scale=1.04, leg_scale=0.97, **CONVENTIONS["CC"]),
                    "CC_Base_Waist")
     rig = build_armature("CC without waist", rows, mixamo_import=False)
@@ -62,12 +63,12 @@ LACKING = [
 @pytest.mark.parametrize("convention,bone,splits", LACKING, ids=[f"{c}-{b}" for c, b, _s in LACKING])
 def test_each_conventions_map_bends_to_a_rig_lacking_a_bone(scene, addon, song, convention, bone, splits):
     layout = CONVENTIONS[convention]
-    shipped = addon.bonemap.load_shipped(convention)
+    shipped = rigmap.load_shipped(convention)
     layout = layout | {"splits": layout.get("splits", {}) | splits}
     rows = convention_rest(shipped.bones, scale=0.92, arm_scale=1.04, leg_scale=0.97, **layout)
     rig = build_armature(f"{convention} without {bone}", without(rows, bone), mixamo_import=False)
     names = [b.name for b in rig.data.bones]
-    assert addon.bonemap.detect(names, rig.name).name == shipped.name
+    assert rigmap.detect(names, rig.name).name == shipped.name
     mapping = dance_under_auto(scene, song, rig)
     assert bone not in mapping.values()
     for joint, extra in splits.items():  # the alternative stands in for the missing bone
@@ -80,7 +81,7 @@ def test_a_missing_spine_bones_turn_is_spread_over_the_bones_present(scene, addo
     missing bone's bend as well as its own), so the chest and all above it stay where the dance puts them."""
     from blender_addon import keyframes, rigdef
 
-    smplx = addon.bonemap.load_shipped("SMPLX")
+    smplx = rigmap.load_shipped("SMPLX")
     rig = build_armature("short spine", without(convention_rest(smplx.bones), "spine2"), mixamo_import=False)
     mapping = {j: j for j in smplx.bones if j != "spine2"}
     motion = synthetic_motion(2.0, seed=3)
@@ -99,7 +100,7 @@ def vrm_addon_stand_in():
     """Property groups laid out as the VRM add-on's (saturday06/VRM-Addon-for-Blender) on Armature data:
     vrm_addon_extension.vrm1.humanoid.human_bones.<bone>.node.bone_name (VRM 1.0) and
     vrm_addon_extension.vrm0.humanoid.human_bones[i].bone / .node.bone_name (VRM 0.x); returns the classes."""
-    from blender_addon.vrmhumanoid import _BODY, _FINGERS, _LIMBS, _SEGMENTS
+    from dancenet_core.rigmap.vrmhumanoid import _BODY, _FINGERS, _LIMBS, _SEGMENTS
 
     props = bpy.props
 
@@ -146,7 +147,7 @@ for _s in ("left", "right"):
 @pytest.mark.parametrize("version", ["1.0", "0.x"])
 def test_a_rig_assigned_by_the_vrm_addon_dances_as_assigned(scene, addon, song, vrm_addon, version):
     """Bones named so no shipped map fits (Bone.017 ...), assigned in the VRM add-on: Auto maps them as assigned."""
-    smplx = addon.bonemap.load_shipped("SMPLX")
+    smplx = rigmap.load_shipped("SMPLX")
     names = {j: f"Bone.{i:03d}" for i, j in enumerate(smplx.bones)}
     rows = convention_rest(smplx.bones, scale=0.92, a_pose_deg=30.0, arm_scale=1.04, leg_scale=0.97, names=names)
     rig = build_armature(f"VRM {version} rig", rows, mixamo_import=False)
@@ -195,9 +196,8 @@ def mmd_rows(english: bool) -> tuple[list, dict[str, str]]:
 
 
 def bpy_free_map(key: str) -> dict[str, list[str]]:
-    from blender_addon import bonemap
 
-    return bonemap.load_shipped(key).bones
+    return rigmap.load_shipped(key).bones
 
 
 @pytest.mark.parametrize("english", [False, True], ids=["japanese", "english"])

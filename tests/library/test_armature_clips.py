@@ -112,16 +112,23 @@ def test_a_rig_too_short_a_clip_or_not_a_humanoid_is_one_line(tmp_path: Path,
     blip.name = "blip"
     tiny = sampled(dance(), a_pose=False)
     tiny.name = "tiny"
-    tiny.rest[..., :3, 3] /= 100  # a rig in centimetres read as metres: 1.5 cm from ankle to head
+    tiny.rest[..., :3, 3] /= 100  # a centimetre rig's 0.01 scale applied twice: 1.5 cm from ankle to head
     tiny.pose[..., :3, 3] /= 100
+    dust = sampled(dance(), a_pose=False)
+    dust.name = "dust"
+    dust.rest[..., :3, 3] /= 1e5  # no unit makes this a dancer
+    dust.pose[..., :3, 3] /= 1e5
     headless = ArmatureClip("snake", "", [0, 1, 2], good.rest[:3], good.pose[:, :3], FPS)
-    library, path = build_armature_library([good, blip, tiny, headless], "test", notes=["Cube: no armature"],
+    library, path = build_armature_library([good, blip, tiny, dust, headless], "test", notes=["Cube: no armature"],
                                            report=lambda _line: None)
-    assert library.num_clips == 1 and path.is_file()
+    assert library.num_clips == 2 and path.is_file()
+    tall = [np.ptp(library.clip(k).skeleton.rest_positions()[:, 1]) for k in range(2)]
+    assert tall == pytest.approx([1.59, 1.59], abs=0.01)  # the tiny rig read at its true size
     notes = list(library.notes)
     assert notes[0] == "left out Cube: no armature"
     assert notes[1] == "left out blip: 0.48 s, too short to hold a bar"
-    assert notes[2].startswith("left out tiny: the rig's rest pose is 0.0153 m tall; a dancer is 0.5-2.5 m")
+    assert notes[2] == ("left out dust: the rig's rest pose is 1.53e-05 units tall, which no unit (metres, "
+                        "centimetres, millimetres, inches) makes a dancer's 0.5-2.5 m")
     assert notes[3] == "left out snake: a rig's clip needs bones for the pelvis, hips and neck; missing: neck"
     again, same = build_armature_library([], "test")
     assert same == path and again.names == library.names  # cached: read, not built

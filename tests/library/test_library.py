@@ -208,7 +208,8 @@ def test_bad_libraries_answer_in_one_line_or_dance(tmp_path: Path, monkeypatch: 
     capsys.readouterr()
     assert _cli("library", "build", str(odd)) == 2
     err = capsys.readouterr().err
-    assert "not a skeleton the library reads" in err and len(err.strip().splitlines()) == 1
+    assert "snake.bvh: not a humanoid skeleton (3 bones: a, b, c): no legs; no arms; no bone for pelvis, neck, " \
+           "head; name its bones in a bone map" in err and len(err.strip().splitlines()) == 1
 
     mixed = tmp_path / "mixed"
     (mixed / "waltz").mkdir(parents=True)

@@ -2,7 +2,7 @@
 
 A map is {"name": ..., "description": ..., "bones": {"<SMPL-X joint>": "<bone>", ...}}. Joints left out
 of a map, and optional joints whose bone the armature lacks, are simply not driven; the joints in
-`rigdef.REQUIRED_JOINTS` and one of `rigdef.SPINE_JOINTS` must resolve or the dance could not read as a dance
+`REQUIRED_JOINTS` and one of `SPINE_JOINTS` must resolve or the dance could not read as a dance
 (a spine bone a rig lacks has its turn spread over those it has). Auto goes by names first and
 by the skeleton's shape (`shapemap`) for the body joints the names leave out.
 """
@@ -20,15 +20,27 @@ from pathlib import Path
 from dancenet_core.errors import DanceNetError, first_line
 from dancenet_core.skeleton import JOINT_NAMES
 
-from .rigdef import REQUIRED_JOINTS, SPINE_JOINTS
 from .shapemap import BODY_JOINTS, RestBone, match_shape
 
 MAP_DIR = Path(__file__).parent / "bonemaps"
 SHIPPED: dict[str, str] = {
     "SMPLX": "smplx.json", "MIXAMO": "mixamo.json", "RIGIFY": "rigify.json", "UNREAL": "unreal.json",
     "VRM": "vrm.json", "CC": "cc.json", "DAZ": "daz.json", "MPFB": "mpfb.json", "MMD": "mmd.json",
-    "GENERIC": "generic.json",
+    "METARIG": "metarig.json", "ROKOKO": "rokoko.json", "XSENS": "xsens.json", "MOTIVE": "motive.json",
+    "CMU": "cmu.json", "GENERIC": "generic.json",
 }  # fmt: skip
+
+# Joints a bone map must name (and the rig must have) for a dance to read as that dance.
+REQUIRED_JOINTS: tuple[str, ...] = (
+    "pelvis", "neck", "head",
+    "left_hip", "left_knee", "left_ankle", "right_hip", "right_knee", "right_ankle",
+    "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
+)  # fmt: skip
+
+# The spine between them: a rig needs a bone for one of these at least. Rigs of one family differ in their
+# count of spine bones; the dance's turn of those a rig lacks is spread over those it has (the add-on's
+# keyframes.retarget; `jointmap.armature_pose` when a clip is read).
+SPINE_JOINTS: tuple[str, ...] = ("spine1", "spine2", "spine3")
 
 
 @dataclass
@@ -180,7 +192,7 @@ def closest(bone_names: Iterable[str], saved: Path | None = None) -> BoneMap:
 
 def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) -> BoneMap:
     """By names: the map that resolves every required joint and the most bones in all, among the user's
-    saved maps in `saved` (first, so they win a tie) and the shipped ones (Auto, `auto`, starts from it)."""
+    saved maps in `saved` (first, so they win a tie) and the shipped ones (Auto, `auto_map`, starts from it)."""
     names = list(bone_names)
     best: tuple[int, BoneMap] | None = None
     for candidate in [*user_maps(saved), *(load_shipped(key) for key in SHIPPED)]:
@@ -198,7 +210,8 @@ def detect(bone_names: Iterable[str], armature: str, saved: Path | None = None) 
     return best[1]
 
 
-def auto(bones: Sequence[RestBone], armature: str, saved: Path | None = None, own: BoneMap | None = None) -> BoneMap:
+def auto_map(bones: Sequence[RestBone], armature: str, saved: Path | None = None,
+             own: BoneMap | None = None) -> BoneMap:
     """For Auto: the map the rig carries (`own`: the VRM add-on's assignments) if it fits, since the user (or the
     importer) said which bone is which; else the name map that fits best (`detect`, else `closest`), with the
     body joints its names leave out found by the skeleton's shape, so a rig whose bone names follow no rule
