@@ -55,6 +55,11 @@ RATIO_MARGIN = 0.1
 # so that the plan still cuts (and seeds still differ).
 CALM_LIMIT = 0.9
 CALM_SHARE = 0.25
+# A figure whose fastest joint, as the warp plays it, steps further than this many times that joint's 99.9th
+# percentile in the library (a leap beyond anything else the dancers do, or a capture's glitch) is danced only where
+# no figure keeps within it: the blends and the foot hold add a little, and a dance should move no joint faster than
+# 1.5 times the clips' 99.9th percentile.
+PEAK_LIMIT = 1.35
 LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
 DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
@@ -269,6 +274,20 @@ def nearest_beat(position: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(position)).astype(np.int64)
 
 
+def figure_peaks(library: MotionLibrary, starts: np.ndarray, spans: np.ndarray) -> np.ndarray:
+    """[F]: each figure's fastest joint step over that joint's 99.9th percentile in the library
+    (`MotionLibrary.peak_ratios`), at the library's own speed, over the clip beats it covers from `starts`."""
+    frame = np.floor(library.beats).astype(np.int64)
+    per_beat = np.maximum.reduceat(library.peak_ratios, np.minimum(frame, len(library.peak_ratios) - 1))
+    first = beat_index(starts)
+    last = np.minimum(np.ceil(starts + spans - 1e-9).astype(np.int64), len(per_beat)) - 1
+    peak = np.zeros(len(starts))
+    for k in range(int((last - first).max(initial=0)) + 1):
+        at = np.minimum(first + k, len(per_beat) - 1)
+        peak = np.where(first + k <= last, np.maximum(peak, per_beat[at]), peak)
+    return peak
+
+
 def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
     """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
     the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
@@ -368,6 +387,7 @@ class _Bars:
             kinetics = stretch_kinetics(library, grid.meter)
         self.kinetics = kinetics if settings.pile else None
         self.entry = entry_steps(library, starts)
+        self.peak = figure_peaks(library, starts, ratios * grid.meter)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
         self.cache: dict[int, tuple] = {}
         self.scale: float | None = None
@@ -410,6 +430,9 @@ class _Bars:
                 + settings.out_of_range * excess + self.rng.normal(0.0, settings.noise, len(starts)))
         if (fits & (excess == 0.0)).any():  # the speed limit holds wherever some figure keeps it
             fits &= excess == 0.0
+        fast = self.peak * np.exp(np.nan_to_num(log_speed, nan=0.0)) > PEAK_LIMIT
+        if (fits & ~fast).any():  # and no joint moves faster than the library's dancers do, where a figure keeps it
+            fits &= ~fast
         if match is not None:
             cost = cost + settings.match_style * match.style_away(starts, ratios, n)
             if settings.match:

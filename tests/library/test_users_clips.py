@@ -180,3 +180,29 @@ def test_the_dance_moves_as_fast_as_the_clips() -> None:
         off = abs(np.log(dance_energy(library, grid, matched) / target))
         assert off <= abs(np.log(dance_energy(library, grid, fixed) / target)) + 1e-9
         assert off <= np.log(1.06), (seed, off)
+
+
+def _glitchy(seconds: float) -> Motion:
+    """A dancer whose right forearm is thrown half a turn for one frame twice in the clip (a capture's glitch)."""
+    m = dancer(seconds, 110, amplitude=0.5, phase=2.0)
+    for at in (0.3, 0.7):
+        m.rotations[int(at * m.num_frames), JOINT_INDEX["right_elbow"], 1] += 1.6
+    return m
+
+
+def test_no_joint_moves_faster_than_the_dancers_ever_do(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Figures whose joints, as the warp plays them, pass `PEAK_LIMIT` times their 99.9th percentile in the library
+    are danced only where nothing else fits: the dance keeps every joint within 1.5 times it."""
+    library = _library(*[(f"c{k}", dancer(40, 104 + 3 * k, amplitude=0.4 + 0.05 * k, phase=k)) for k in range(4)],
+                       ("glitchy", _glitchy(40)))
+    steps = library.joint_steps[library.joint_steps.sum(axis=1) > 0]
+    p999 = np.percentile(steps, 99.9, axis=0)
+
+    def fastest(seed: int) -> float:
+        dance = choreograph(library, song(60, 110, loud_from=30), seed=seed)[0]
+        made = np.linalg.norm(np.diff(dance.motion.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+        return float((made / p999).max())
+
+    assert max(fastest(s) for s in range(4)) <= 1.5
+    monkeypatch.setattr("dancenet_core.library.choreography.PEAK_LIMIT", np.inf)
+    assert max(fastest(s) for s in range(4)) > 1.5  # without the limit, the glitches are danced
