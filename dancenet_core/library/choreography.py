@@ -38,6 +38,7 @@ from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from ..music.form import SongForm, song_form
 from .analysis import POSE_DIM, frame_features
+from .energy import clips_energy, dance_energy
 from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
 from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
@@ -505,27 +506,6 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     return [(float(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
 
 
-def clips_energy(library: MotionLibrary) -> float:
-    """The clips' mean joint speed (m/s), every frame alike: `MotionLibrary.energy` weighted by each beat's length."""
-    last = np.r_[library.beat_clip[1:] != library.beat_clip[:-1], True]
-    ends = np.where(last, library.clip_starts[library.beat_clip + 1], np.r_[library.beats[1:], 0.0])
-    length = np.maximum(ends - library.beats, 0.0)
-    return float((library.energy * length).sum() / max(length.sum(), 1e-9))
-
-
-def dance_energy(library: MotionLibrary, grid: Grid, bars: list[tuple[float, float]]) -> float:
-    """The mean joint speed (m/s) of the clip beats a plan lays on the song's bars, each bar weighted by its length."""
-    csum = np.concatenate([[0.0], np.cumsum(library.energy, dtype=np.float64)])
-    beat = np.arange(len(csum))
-    total = weight = 0.0
-    for (start, ratio), (a, n) in zip(bars, grid.bars, strict=True):
-        span = max(ratio * n, 1e-9)
-        mean = (np.interp(min(start + span, len(csum) - 1), beat, csum) - np.interp(start, beat, csum)) / span
-        seconds = grid.beats[a + n] - grid.beats[a]
-        total, weight = total + mean * seconds, weight + seconds
-    return total / max(weight, 1e-9)
-
-
 def plan_at_clips_energy(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
                          style: str | None, settings: Settings, previous: np.ndarray | None,
                          match: FigureMatch | None, form: SongForm | None,
@@ -546,7 +526,8 @@ def plan_at_clips_energy(library: MotionLibrary, grid: Grid, onset: np.ndarray, 
         rng.bit_generator.state = state
         bars = plan(library, grid, onset, rng, style, replace(settings, energy_shift=shift), previous, match, form,
                     kinetics)
-        tried.append((float(np.log(max(dance_energy(library, grid, bars), 1e-9) / max(target, 1e-9))), shift, bars))
+        danced = dance_energy(library, grid.beats, grid.bars, bars)
+        tried.append((float(np.log(max(danced, 1e-9) / max(target, 1e-9))), shift, bars))
         off = tried[-1][0]
         if abs(off) <= np.log1p(ENERGY_TOLERANCE):
             break
