@@ -4,7 +4,7 @@
    cut into bars at its downbeats (none longer than the meter).
 2. The plan (`plan`): dynamic programming over the bars. A state is a figure: a start in the library (a downbeat
    of a clip in the song's meter, or every `meter` beats of a clip in another) and how many clip beats it lays on
-   each song beat (1, 2, 1/2, 3/2 or 2/3: `RATIOS`), so that a clip danced at half or twice the song's tempo, or
+   each song beat (1, 2, 1/2, 3/2 or 2/3: `figures.RATIOS`), so that a clip danced at half or twice the song's tempo, or
    whose tempo was read an octave off, still plays at its dancers' speed; a bar of n beats takes the library's
    ratio x n beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of
    the mean onset strength), the time-warp in real time (how much faster or slower than captured the figure plays,
@@ -17,7 +17,7 @@
    the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`), and a cost where the bars
    either side of a cut both move some joint far more than the library's dancers usually do (`stretch_kinetics`),
    so that the loudest bars do not get the library's extremes laid back to back. A clip is only tried at the
-   ratios that can play it near its speed (`RATIO_MARGIN`), so there are about as many figures as starts. The
+   ratios that can play it near its speed (`figures.RATIO_MARGIN`), so there are about as many figures as starts. The
    whole table is [bars, figures] and each step a vectorised min over [figure ends, figure starts]: a 3-minute
    song on a 30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
 3. The dance (`transitions.render`): every figure's frames sampled at the warped times, the root path carried
@@ -27,7 +27,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from fractions import Fraction
 
 import numpy as np
 
@@ -39,17 +38,21 @@ from ..music.features import ONSET_COL, MusicAnalysis
 from ..music.form import SongForm, song_form
 from .analysis import POSE_DIM, frame_features
 from .energy import clips_energy, dance_energy
+from .figures import (
+    DEFAULT_BPM,
+    START_DECIMALS,
+    Grid,
+    beat_index,
+    entry_steps,
+    figure_peaks,
+    figure_states,
+    nearest_beat,
+    stretch_kinetics,
+)
 from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
 from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
 
-# A figure plays every frame within WARP_RANGE of the speed it was captured at (in real time, whatever the beats):
-# it is laid onto the song's beats at one of `RATIOS` clip beats per song beat, so that a clip danced at half or
-# twice the song's tempo (or read an octave off) keeps its dancers' speed.
-RATIOS = (1.0, 2.0, 0.5, 1.5, 2.0 / 3.0)
-# A ratio is tried for a clip when it plays the clip's median beat within this much (log speed) beyond the range:
-# the per-beat warp decides; ratios far off never fit and only cost time.
-RATIO_MARGIN = 0.1
 # A cut's new figure: its joints' steps over the frames the cut blends (and the one before) at most this share of
 # each joint's 99th percentile in the library, as the warp plays them; the rest is left to the fading offset. In a
 # library whose dancers are never that calm, the calmest quarter of its figures' openings sets the limit instead,
@@ -62,10 +65,8 @@ CALM_SHARE = 0.25
 # 1.5 times the clips' 99.9th percentile.
 PEAK_LIMIT = 1.35
 LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
-DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
 PHRASE_TOLERANCE_S = 0.1  # a grid bar and a bar of the song's form that start this close are one bar
-START_DECIMALS = 6  # figure starts between two clip beats are rounded to this many decimals of a beat
 # `plan_at_clips_energy`: the dance's mean joint speed within this share of the clips', in at most this many plans,
 # the music's energy ranks shifted by this much first (then by the secant), never by more than the last
 ENERGY_TOLERANCE = 0.03
@@ -109,15 +110,6 @@ class Settings:
 
 
 DEFAULT_SETTINGS = Settings()
-
-
-@dataclass
-class Grid:
-    """The song's beats (seconds) over the part danced and its bars as (first beat, beats) pairs."""
-
-    beats: np.ndarray
-    bars: list[tuple[int, int]]
-    meter: int
 
 
 @dataclass
@@ -192,136 +184,6 @@ def song_grid(analysis: MusicAnalysis, start_s: float, end_s: float) -> Grid:
             a += meter
         bars.append((a, b - a))
     return Grid(beats, bars, meter)
-
-
-def figure_starts(library: MotionLibrary, meter: int, style: str | None, every: int | None = None) -> np.ndarray:
-    """Beats where a figure may start: downbeats of clips in `meter`, every `meter` beats from the first downbeat of
-    the others, and with `every` (fewer beats than `meter`: a figure that lays half a clip's bar on a song's bar)
-    every `every` beats from each of those; only beats with one more of their clip after them, and only clips of
-    `style` when the library has figures of it."""
-    starts = np.zeros(len(library.beats), bool)
-    for c in range(library.num_clips):
-        idx = np.flatnonzero(library.beat_clip == c)
-        if len(idx) < 2:
-            continue
-        if library.meter[c] == meter:
-            starts[idx] = library.downbeat[idx]
-        else:
-            first = idx[np.argmax(library.downbeat[idx])] - idx[0]
-            starts[idx[first::meter]] = True
-    if every is not None and every < meter:
-        downs = np.flatnonzero(starts)
-        starts[np.minimum((downs[:, None] + every * np.arange(1, -(-meter // every))[None]).ravel(),
-                          len(starts) - 1)] = True
-    nxt = np.minimum(np.arange(len(starts)) + 1, len(starts) - 1)
-    starts &= (library.beat_clip[nxt] == library.beat_clip) & (np.arange(len(starts)) + 1 < len(starts))
-    if style:
-        same = starts & np.isin(library.beat_clip, [c for c, s in enumerate(library.styles) if s == style])
-        if same.any():
-            starts = same
-    return np.flatnonzero(starts)
-
-
-def clip_ibi_s(library: MotionLibrary) -> np.ndarray:
-    """[clips]: each clip's median beat interval (seconds; inf for a clip of one beat)."""
-    ibi = np.full(library.num_clips, np.inf)
-    for c in range(library.num_clips):
-        b = library.beats[library.beat_clip == c]
-        if len(b) > 1:
-            ibi[c] = float(np.median(np.diff(b))) / library.fps
-    return ibi
-
-
-def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tuple[np.ndarray, np.ndarray]:
-    """The figures the plan chooses from: (start beat, clip beats per song beat) pairs. Each clip is tried at the
-    ratios (`RATIOS`) that play its median beat near its captured speed on the song's median beat, at least at its
-    nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar. Where a ratio
-    lays a fraction of a beat on a bar (2/3 of a clip beat per song beat on a 4/4 bar: 8/3), the figure that carries
-    on from one starts where it ends, between two clip beats (`START_DECIMALS`), so that a clip danced at that ratio
-    is not cut every bar."""
-    song_ibi = float(np.median(np.diff(grid.beats))) if len(grid.beats) > 1 else 60.0 / DEFAULT_BPM
-    with np.errstate(divide="ignore", invalid="ignore"):
-        off = np.abs(np.log(np.array(RATIOS)[None, :] * clip_ibi_s(library)[:, None] / song_ibi))
-    off = np.nan_to_num(off, nan=np.inf, posinf=np.inf)
-    tried = (off <= np.log1p(WARP_RANGE) + RATIO_MARGIN) | (off == off.min(axis=1, keepdims=True))
-    in_range = off <= np.log1p(WARP_RANGE)
-    starts, ratios = [], []
-    for k, r in enumerate(RATIOS):
-        span = r * grid.meter
-        whole = abs(span - round(span)) < 1e-9
-        every = int(round(span)) if r < 1 and whole else None
-        s = figure_starts(library, grid.meter, style, every).astype(np.float64)
-        if not whole:  # a fraction of a beat a bar: the bars in between start between two beats, for the clips
-            # the ratio plays within the speed limit (the others dance it only where nothing else fits)
-            turns = Fraction(span).limit_denominator(6).denominator
-            fit = s[in_range[library.beat_clip[s.astype(np.int64)], k]]
-            s = np.concatenate([s, (fit[:, None] + span * np.arange(1, turns)[None]).ravel()])
-            s = s[np.ceil(s) < len(library.beats)]
-            s = s[library.beat_clip[np.ceil(s).astype(np.int64)] == library.beat_clip[np.floor(s).astype(np.int64)]]
-        s = np.round(s, START_DECIMALS)
-        s = s[tried[library.beat_clip[np.floor(s).astype(np.int64)], k]]
-        starts.append(s)
-        ratios.append(np.full(len(s), r))
-    return np.concatenate(starts), np.concatenate(ratios)
-
-
-def beat_index(position: np.ndarray) -> np.ndarray:
-    """The library beat at or before each (maybe fractional) beat position: its clip and energy."""
-    return np.floor(np.asarray(position) + 10.0 ** -START_DECIMALS).astype(np.int64)
-
-
-def nearest_beat(position: np.ndarray) -> np.ndarray:
-    """The library beat nearest each beat position: whose boundary features stand for it."""
-    return np.round(np.asarray(position)).astype(np.int64)
-
-
-def figure_peaks(library: MotionLibrary, starts: np.ndarray, spans: np.ndarray) -> np.ndarray:
-    """[F]: each figure's fastest joint step over that joint's 99.9th percentile in the library
-    (`MotionLibrary.peak_ratios`), at the library's own speed, over the clip beats it covers from `starts`."""
-    frame = np.floor(library.beats).astype(np.int64)
-    per_beat = np.maximum.reduceat(library.peak_ratios, np.minimum(frame, len(library.peak_ratios) - 1))
-    first = beat_index(starts)
-    last = np.minimum(np.ceil(starts + spans - 1e-9).astype(np.int64), len(per_beat)) - 1
-    peak = np.zeros(len(starts))
-    for k in range(int((last - first).max(initial=0)) + 1):
-        at = np.minimum(first + k, len(per_beat) - 1)
-        peak = np.where(first + k <= last, np.maximum(peak, per_beat[at]), peak)
-    return peak
-
-
-def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
-    """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
-    the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
-    ratio = library.step_ratios
-    first = np.floor(beat_frames(library, starts)).astype(np.int64)
-    clip = library.beat_clip[beat_index(starts)]
-    lo = np.maximum(first - 1, library.clip_starts[clip])
-    hi = np.minimum(first + int(round(CUT_BLEND_S * library.fps)) + 1, library.clip_starts[clip + 1] - 1)
-    return np.array([ratio[a : b + 1].max() for a, b in zip(lo, hi, strict=True)])
-
-
-def stretch_kinetics(library: MotionLibrary, beats: int) -> tuple[np.ndarray, np.ndarray]:
-    """[B, 2 x body joints] twice: per beat of the library, each body joint's mean squared speed over the floor and
-    up and down over the `beats` beats after it (within its clip) and over those before it, as standard deviations
-    past the median of all such stretches in the library, less one (0 where within one, and for a stretch of under
-    half as many beats, cut short by its clip's end or start)."""
-    power = library.joint_motion[1]
-    csum = np.concatenate([np.zeros((1, power.shape[1])), np.cumsum(power, axis=0, dtype=np.float64)])
-    frame = np.floor(library.beats).astype(np.int64)
-    clip = library.beat_clip
-    index = np.arange(len(frame))
-    first_beat = np.searchsorted(clip, clip, side="left")
-    end_beat = np.searchsorted(clip, clip, side="right")  # one past the clip's last beat
-    ahead, behind = np.minimum(index + beats, end_beat - 1), np.maximum(index - beats, first_beat)
-
-    def mean(a: np.ndarray, b: np.ndarray, covered: np.ndarray) -> np.ndarray:
-        power_mean = (csum[frame[b]] - csum[frame[a]]) / np.maximum(frame[b] - frame[a], 1)[:, None]
-        return np.where((2 * covered >= beats)[:, None], power_mean, np.nan)
-
-    after, before = mean(index, ahead, ahead - index), mean(behind, index, index - behind)
-    centre, spread = np.nanmedian(after, axis=0), np.maximum(np.nanstd(after, axis=0), 1e-9)
-    return tuple(np.nan_to_num(np.maximum((x - centre) / spread - 1.0, 0.0)).astype(np.float32)
-                 for x in (after, before))
 
 
 def _ranks(x: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
@@ -558,10 +420,28 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     dances = []
     for _ in range(takes):
         bars = plan_at_clips_energy(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
+        bars = _carried_to_the_end(library, grid, bars, end)
         figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
+
+
+def _carried_to_the_end(library: MotionLibrary, grid: Grid, bars: list[tuple[float, float]], end_s: float
+                        ) -> list[tuple[float, float]]:
+    """The plan, its last figure the one before it carried on where a cut would fall within `CUT_BLEND_S` of the
+    part's end (too late for its blend: the dance would jump in its last frames) and the clip goes on that far."""
+    if len(bars) < 2:
+        return bars
+    (start, ratio), n = bars[-2], grid.bars[-2][1]
+    carried = start + ratio * n
+    last_start = grid.beats[grid.bars[-1][0]]
+    until = carried + ratio * grid.bars[-1][1]
+    if (abs(carried - bars[-1][0]) < 1e-5 or end_s - last_start >= CUT_BLEND_S or until > len(library.beats) - 1
+            or library.beat_clip[min(int(np.ceil(until - 1e-9)), len(library.beats) - 1)]
+            != library.beat_clip[beat_index(start)]):
+        return bars
+    return [*bars[:-1], (round(carried, START_DECIMALS), ratio)]
 
 
 def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,

@@ -29,6 +29,7 @@ from dancenet_core.library.choreography import (
 )
 from dancenet_core.library.loops import around_loop, loop_period
 from dancenet_core.library.store import MotionLibrary
+from dancenet_core.library.transitions import CUT_BLEND_S
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import ONSET_COL
 from dancenet_core.skeleton import BODY_JOINTS, JOINT_INDEX, TOE_ENDS
@@ -206,3 +207,15 @@ def test_no_joint_moves_faster_than_the_dancers_ever_do(monkeypatch: pytest.Monk
     assert max(fastest(s) for s in range(4)) <= 1.5
     monkeypatch.setattr("dancenet_core.library.choreography.PEAK_LIMIT", np.inf)
     assert max(fastest(s) for s in range(4)) > 1.5  # without the limit, the glitches are danced
+
+
+def test_no_cut_in_the_last_frames_of_a_part() -> None:
+    """A part that ends just after a downbeat: the figure before carries on into that last sliver of a bar rather
+    than a cut the blend has no frames to fade (the dance would jump in its last frame)."""
+    library = _library(*[(f"c{k}", dancer(30, 104 + 4 * k, amplitude=0.3 + 0.1 * k, phase=k)) for k in range(4)])
+    music = song(20, 120)
+    end = float(music.downbeat_times[4]) + 0.05
+    for seed in range(4):
+        dance = choreograph(library, music, seed=seed, end_s=end, settings=Settings(noise=2.0, cut=0.0))[0]
+        frames = dance.motion.num_frames
+        assert all(c < frames - CUT_BLEND_S * FPS for c in dance.report.cuts), (seed, dance.report.cuts, frames)
