@@ -420,28 +420,29 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     dances = []
     for _ in range(takes):
         bars = plan_at_clips_energy(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
-        bars = _carried_to_the_end(library, grid, bars, end)
-        figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
+        figures = _carried_to_the_end(library, [Figure(s, n, grid.beats[a : a + n + 1], r)
+                                                for (s, r), (a, n) in zip(bars, grid.bars, strict=True)], end)
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
 
 
-def _carried_to_the_end(library: MotionLibrary, grid: Grid, bars: list[tuple[float, float]], end_s: float
-                        ) -> list[tuple[float, float]]:
-    """The plan, its last figure the one before it carried on where a cut would fall within `CUT_BLEND_S` of the
-    part's end (too late for its blend: the dance would jump in its last frames) and the clip goes on that far."""
-    if len(bars) < 2:
-        return bars
-    (start, ratio), n = bars[-2], grid.bars[-2][1]
-    carried = start + ratio * n
-    last_start = grid.beats[grid.bars[-1][0]]
-    until = carried + ratio * grid.bars[-1][1]
-    if (abs(carried - bars[-1][0]) < 1e-5 or end_s - last_start >= CUT_BLEND_S or until > len(library.beats) - 1
-            or library.beat_clip[min(int(np.ceil(until - 1e-9)), len(library.beats) - 1)]
-            != library.beat_clip[beat_index(start)]):
-        return bars
-    return [*bars[:-1], (round(carried, START_DECIMALS), ratio)]
+def _carried_to_the_end(library: MotionLibrary, figures: list[Figure], end_s: float) -> list[Figure]:
+    """The figures, the last two one figure where the last would be a cut within `CUT_BLEND_S` of the part's end (too
+    late for its blend: the dance would jump in its last frames): the figure before carried on at one speed over
+    both bars, where its clip goes on that far and the speed keeps within its limit."""
+    if len(figures) < 2 or figures[-2].carries_on(figures[-1]) or end_s - figures[-1].times[0] >= CUT_BLEND_S:
+        return figures
+    prev, last = figures[-2:]
+    merged = Figure(prev.start, prev.beats + last.beats, np.concatenate([prev.times, last.times[1:]]), prev.ratio)
+    if merged.end > len(library.beats) - 1 or (library.beat_clip[min(int(np.ceil(merged.end - 1e-9)),
+                                                                     len(library.beats) - 1)]
+                                               != library.beat_clip[beat_index(prev.start)]):
+        return figures
+    clip_s = float(np.diff(beat_frames(library, np.array([merged.start, merged.end])))[0]) / library.fps
+    if _speed_limit_excess(np.log(clip_s / (merged.times[-1] - merged.times[0]))) > 0:
+        return figures
+    return [*figures[:-2], merged]
 
 
 def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,

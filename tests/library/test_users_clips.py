@@ -211,7 +211,8 @@ def test_no_joint_moves_faster_than_the_dancers_ever_do(monkeypatch: pytest.Monk
 
 def test_no_cut_in_the_last_frames_of_a_part() -> None:
     """A part that ends just after a downbeat: the figure before carries on into that last sliver of a bar rather
-    than a cut the blend has no frames to fade (the dance would jump in its last frame)."""
+    than a cut the blend has no frames to fade (the dance would jump in its last frame), at one speed over both bars
+    within the speed limit."""
     library = _library(*[(f"c{k}", dancer(30, 104 + 4 * k, amplitude=0.3 + 0.1 * k, phase=k)) for k in range(4)])
     music = song(20, 120)
     end = float(music.downbeat_times[4]) + 0.05
@@ -219,3 +220,4 @@ def test_no_cut_in_the_last_frames_of_a_part() -> None:
         dance = choreograph(library, music, seed=seed, end_s=end, settings=Settings(noise=2.0, cut=0.0))[0]
         frames = dance.motion.num_frames
         assert all(c < frames - CUT_BLEND_S * FPS for c in dance.report.cuts), (seed, dance.report.cuts, frames)
+        assert dance.report.max_warp <= 0.15 + 1e-6  # the figure carried on within its speed limit
