@@ -103,10 +103,12 @@ class Settings:
     # past one standard deviation each lies (`stretch_kinetics`), so that the plan does not lay the library's
     # extremes back to back where no dancer did.
     pile: float = 0.05
-    # The music's energy ranks are shifted by this much (clipped to [0, 1]) before figures are matched to them:
-    # `plan_at_clips_energy` sets it so that the dance moves as fast as the clips do on average (`energy_match`).
+    # The music's energy ranks are shifted by this much (clipped to [0, 1])
+    # before figures are matched to them: with `energy_match`, `plan_at_clips_energy` sets it so that each dance
+    # moves as fast as the clips do on average. Off: it also takes each song's own energy away (a quiet rumba danced
+    # at the library's mean), and on the Dance with Melody folds it doubled FID_g (docs/experiments.md).
     energy_shift: float = 0.0
-    energy_match: bool = True
+    energy_match: bool = False
 
 
 DEFAULT_SETTINGS = Settings()

@@ -166,8 +166,8 @@ def test_how_many_clips_a_dance_uses_and_how_evenly() -> None:
 
 
 def test_the_dance_moves_as_fast_as_the_clips() -> None:
-    """A library of calm clips and one lively one: the plan's energy ranks are shifted until the dance's mean joint
-    speed is the clips' (within 3%, or the nearest of its tries), whatever the joins prefer."""
+    """A library of calm clips and one lively one: with `energy_match` the plan's energy ranks are shifted until the
+    dance's mean joint speed is the clips' (within 3%, or the nearest of its tries), whatever the joins prefer."""
     library = _library(*[(f"calm{k}", dancer(30, 100 + 5 * k, amplitude=0.2, phase=k)) for k in range(3)],
                        ("lively", dancer(30, 110, amplitude=0.7)))
     music = song(40, 108, loud_from=20)
@@ -176,8 +176,8 @@ def test_the_dance_moves_as_fast_as_the_clips() -> None:
     target = clips_energy(library)
     for seed in range(3):
         fixed = plan(library, grid, onset, np.random.default_rng(seed), settings=Settings(energy_match=False))
-        matched = plan_at_clips_energy(library, grid, onset, np.random.default_rng(seed), None, Settings(), None,
-                                       None, None, None)
+        matched = plan_at_clips_energy(library, grid, onset, np.random.default_rng(seed), None,
+                                       Settings(energy_match=True), None, None, None, None)
         off = abs(np.log(dance_energy(library, grid.beats, grid.bars, matched) / target))
         assert off <= abs(np.log(dance_energy(library, grid.beats, grid.bars, fixed) / target)) + 1e-9
         assert off <= np.log(1.06), (seed, off)
