@@ -15,7 +15,7 @@ over all its dances, the figures issue 45's "done when" asks for:
   of the seconds danced per clip: N for N clips danced equally long), and `clips_in_library`.
 
     OMP_NUM_THREADS=1 .venv/bin/python scripts/library_users_check.py [--folder FOLDER] [--takes 2]
-        [--seconds 60] [--songs DIR] [--no-default] [--set NAME=VALUE ...] [--commercial]
+        [--seconds 60] [--songs DIR] [--no-default] [--no-folder] [--returns anew] [--set NAME=VALUE ...] [--commercial]
 
 `--folder` is a folder of clips (built first as `dancenet library build` builds it); without it, the CMU BVH clips
 of the data folder (`$DANCENET_DATA/cmu_dance`) laid flat in a temporary folder, so that no clip names a style:
@@ -131,7 +131,7 @@ def users_folder(tmp: Path) -> Path:
 
 
 def check(name: str, library, folder: Path | None, song_files: list[Path], takes: int, seconds: float,
-          settings, commercial: bool = False) -> dict:
+          settings, returns: str, commercial: bool = False) -> dict:
     from dancenet_core.generate import generate_dance
     from dancenet_core.library import engine
     from dancenet_core.request import DanceRequest
@@ -142,7 +142,7 @@ def check(name: str, library, folder: Path | None, song_files: list[Path], takes
     with mock.patch.object(engine, "choreograph", lambda *a, **k: choreograph(*a, settings=settings, **k)):
         for song in song_files:
             result = generate_dance(DanceRequest(song=song, engine="library", library=folder, end_s=seconds,
-                                                 takes=takes, commercial=commercial))
+                                                 takes=takes, returns=returns, commercial=commercial))
             rows = measure(result, stats)
             positions += [m.positions()[:, :BODY_JOINTS] for m in result.motions]
             beats += [result.beat_times] * len(result.motions)
@@ -175,6 +175,7 @@ def main() -> int:
     parser.add_argument("--no-default", action="store_true", help="leave out the shipped CMU library")
     parser.add_argument("--no-folder", action="store_true", help="leave out the folder of clips")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--returns", default="repeat", help="returning sections: repeat (the default), mirror, anew")
     parser.add_argument("--commercial", action="store_true",
                         help="the commercial mode (weight-free analysis, no learned match; the folder only)")
     args = parser.parse_args()
@@ -186,13 +187,14 @@ def main() -> int:
         song_files = songs(args.songs, args.seconds, tmp)
         if not args.no_default and not args.commercial:  # the shipped library is not the commercial mode's
             summaries.append(check("shipped CMU", load_default(), None, song_files, args.takes, args.seconds,
-                                   settings))
+                                   settings, args.returns))
         if not args.no_folder:
             folder = args.folder or users_folder(tmp)
             library, _ = build_library(folder, report=lambda _line: None)
             summaries.append(check(str(args.folder or "CMU clips, flat"), library, folder, song_files, args.takes,
-                                   args.seconds, settings, args.commercial))
-    print(json.dumps({"settings": changed, "commercial": args.commercial, "all": summaries}, indent=1))
+                                   args.seconds, settings, args.returns, args.commercial))
+    print(json.dumps({"settings": changed, "returns": args.returns, "commercial": args.commercial, "all": summaries},
+                     indent=1))
     return 0
 
 

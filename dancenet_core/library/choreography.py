@@ -4,7 +4,7 @@
    cut into bars at its downbeats (none longer than the meter).
 2. The plan (`plan`): dynamic programming over the bars. A state is a figure: a start in the library (a downbeat
    of a clip in the song's meter, or every `meter` beats of a clip in another) and how many clip beats it lays on
-   each song beat (1, 2, 1/2, 3/2 or 2/3: `RATIOS`), so that a clip danced at half or twice the song's tempo, or
+   each song beat (1, 2, 1/2, 3/2 or 2/3: `figures.RATIOS`), so that a clip danced at half or twice the song's tempo, or
    whose tempo was read an octave off, still plays at its dancers' speed; a bar of n beats takes the library's
    ratio x n beats from it. Each bar's cost: its energy against the music's (ranks of the mean joint speed and of
    the mean onset strength), the time-warp in real time (how much faster or slower than captured the figure plays,
@@ -17,7 +17,7 @@
    the dancers are calm, so that no joint jumps at a transition; see `CALM_SHARE`), and a cost where the bars
    either side of a cut both move some joint far more than the library's dancers usually do (`stretch_kinetics`),
    so that the loudest bars do not get the library's extremes laid back to back. A clip is only tried at the
-   ratios that can play it near its speed (`RATIO_MARGIN`), so there are about as many figures as starts. The
+   ratios that can play it near its speed (`figures.RATIO_MARGIN`), so there are about as many figures as starts. The
    whole table is [bars, figures] and each step a vectorised min over [figure ends, figure starts]: a 3-minute
    song on a 30-minute library (about 1,000 figures) is about 90 steps of 10^6 numbers.
 3. The dance (`transitions.render`): every figure's frames sampled at the warped times, the root path carried
@@ -26,8 +26,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from fractions import Fraction
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,28 +37,42 @@ from ..music.features import FPS as MUSIC_FPS
 from ..music.features import ONSET_COL, MusicAnalysis
 from ..music.form import SongForm, song_form
 from .analysis import POSE_DIM, frame_features
+from .energy import clips_energy, dance_energy
+from .figures import (
+    DEFAULT_BPM,
+    START_DECIMALS,
+    Grid,
+    beat_index,
+    entry_steps,
+    figure_peaks,
+    figure_states,
+    nearest_beat,
+    stretch_kinetics,
+)
 from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
 from .transitions import CUT_BLEND_S, Figure, Rendered, beat_frames, cut_steps, render
 
-# A figure plays every frame within WARP_RANGE of the speed it was captured at (in real time, whatever the beats):
-# it is laid onto the song's beats at one of `RATIOS` clip beats per song beat, so that a clip danced at half or
-# twice the song's tempo (or read an octave off) keeps its dancers' speed.
-RATIOS = (1.0, 2.0, 0.5, 1.5, 2.0 / 3.0)
-# A ratio is tried for a clip when it plays the clip's median beat within this much (log speed) beyond the range:
-# the per-beat warp decides; ratios far off never fit and only cost time.
-RATIO_MARGIN = 0.1
 # A cut's new figure: its joints' steps over the frames the cut blends (and the one before) at most this share of
 # each joint's 99th percentile in the library, as the warp plays them; the rest is left to the fading offset. In a
 # library whose dancers are never that calm, the calmest quarter of its figures' openings sets the limit instead,
 # so that the plan still cuts (and seeds still differ).
 CALM_LIMIT = 0.9
 CALM_SHARE = 0.25
+# A figure whose fastest joint, as the warp plays it, steps further than this many times that joint's 99.9th
+# percentile in the library (a leap beyond anything else the dancers do, or a capture's glitch) is danced only where
+# no figure keeps within it: the blends and the foot hold add a little, and a dance should move no joint faster than
+# 1.5 times the clips' 99.9th percentile.
+PEAK_LIMIT = 1.35
 LONG_RUN_BARS = 4  # the copied-run report: frames from runs of one clip longer than this many bars
-DEFAULT_BPM = 120.0  # the grid of a song without two tracked beats
 FALLBACK_METER = 4
 PHRASE_TOLERANCE_S = 0.1  # a grid bar and a bar of the song's form that start this close are one bar
-START_DECIMALS = 6  # figure starts between two clip beats are rounded to this many decimals of a beat
+# `plan_at_clips_energy`: the dance's mean joint speed within this share of the clips', in at most this many plans,
+# the music's energy ranks shifted by this much first (then by the secant), never by more than the last
+ENERGY_TOLERANCE = 0.03
+ENERGY_ROUNDS = 4
+ENERGY_STEP = 0.15
+MAX_ENERGY_SHIFT = 0.6
 
 
 @dataclass(frozen=True)
@@ -75,9 +88,9 @@ class Settings:
     contact: float = 0.3
     cut: float = 0.2  # every cut costs this much more than carrying on with the clip
     calm: float = 50.0  # per unit of a cut's step over the limit (steep: only where no calmer cut fits)
-    # With a learned match (a library whose clips name no style): per unit of its cosine below 1 on each bar (off: on
-    # the validation songs it did not raise the Beat Align Score), and per unit of the part's probability of a
-    # figure's clip's style below its most probable style's (docs/matching.md).
+    # With a learned match (a library whose clips name no style): per unit of its cosine below 1 on each bar (off,
+    # docs/matching.md), and per unit of the part's probability of a figure's clip's style below its most probable
+    # style's.
     match: float = 0.0
     match_style: float = 20.0
     # The song's form (`music.form`): a cut on a bar that begins no phrase costs this much more, and a bar's music
@@ -90,18 +103,15 @@ class Settings:
     # past one standard deviation each lies (`stretch_kinetics`), so that the plan does not lay the library's
     # extremes back to back where no dancer did.
     pile: float = 0.05
+    # The music's energy ranks are shifted by this much (clipped to [0, 1])
+    # before figures are matched to them: with `energy_match`, `plan_at_clips_energy` sets it so that each dance
+    # moves as fast as the clips do on average. Off: it also takes each song's own energy away (a quiet rumba danced
+    # at the library's mean), and on the Dance with Melody folds it doubled FID_g (docs/experiments.md).
+    energy_shift: float = 0.0
+    energy_match: bool = False
 
 
 DEFAULT_SETTINGS = Settings()
-
-
-@dataclass
-class Grid:
-    """The song's beats (seconds) over the part danced and its bars as (first beat, beats) pairs."""
-
-    beats: np.ndarray
-    bars: list[tuple[int, int]]
-    meter: int
 
 
 @dataclass
@@ -178,122 +188,6 @@ def song_grid(analysis: MusicAnalysis, start_s: float, end_s: float) -> Grid:
     return Grid(beats, bars, meter)
 
 
-def figure_starts(library: MotionLibrary, meter: int, style: str | None, every: int | None = None) -> np.ndarray:
-    """Beats where a figure may start: downbeats of clips in `meter`, every `meter` beats from the first downbeat of
-    the others, and with `every` (fewer beats than `meter`: a figure that lays half a clip's bar on a song's bar)
-    every `every` beats from each of those; only beats with one more of their clip after them, and only clips of
-    `style` when the library has figures of it."""
-    starts = np.zeros(len(library.beats), bool)
-    for c in range(library.num_clips):
-        idx = np.flatnonzero(library.beat_clip == c)
-        if len(idx) < 2:
-            continue
-        if library.meter[c] == meter:
-            starts[idx] = library.downbeat[idx]
-        else:
-            first = idx[np.argmax(library.downbeat[idx])] - idx[0]
-            starts[idx[first::meter]] = True
-    if every is not None and every < meter:
-        downs = np.flatnonzero(starts)
-        starts[np.minimum((downs[:, None] + every * np.arange(1, -(-meter // every))[None]).ravel(),
-                          len(starts) - 1)] = True
-    nxt = np.minimum(np.arange(len(starts)) + 1, len(starts) - 1)
-    starts &= (library.beat_clip[nxt] == library.beat_clip) & (np.arange(len(starts)) + 1 < len(starts))
-    if style:
-        same = starts & np.isin(library.beat_clip, [c for c, s in enumerate(library.styles) if s == style])
-        if same.any():
-            starts = same
-    return np.flatnonzero(starts)
-
-
-def clip_ibi_s(library: MotionLibrary) -> np.ndarray:
-    """[clips]: each clip's median beat interval (seconds; inf for a clip of one beat)."""
-    ibi = np.full(library.num_clips, np.inf)
-    for c in range(library.num_clips):
-        b = library.beats[library.beat_clip == c]
-        if len(b) > 1:
-            ibi[c] = float(np.median(np.diff(b))) / library.fps
-    return ibi
-
-
-def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tuple[np.ndarray, np.ndarray]:
-    """The figures the plan chooses from: (start beat, clip beats per song beat) pairs. Each clip is tried at the
-    ratios (`RATIOS`) that play its median beat near its captured speed on the song's median beat, at least at its
-    nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar. Where a ratio
-    lays a fraction of a beat on a bar (2/3 of a clip beat per song beat on a 4/4 bar: 8/3), the figure that carries
-    on from one starts where it ends, between two clip beats (`START_DECIMALS`), so that a clip danced at that ratio
-    is not cut every bar."""
-    song_ibi = float(np.median(np.diff(grid.beats))) if len(grid.beats) > 1 else 60.0 / DEFAULT_BPM
-    with np.errstate(divide="ignore", invalid="ignore"):
-        off = np.abs(np.log(np.array(RATIOS)[None, :] * clip_ibi_s(library)[:, None] / song_ibi))
-    off = np.nan_to_num(off, nan=np.inf, posinf=np.inf)
-    tried = (off <= np.log1p(WARP_RANGE) + RATIO_MARGIN) | (off == off.min(axis=1, keepdims=True))
-    in_range = off <= np.log1p(WARP_RANGE)
-    starts, ratios = [], []
-    for k, r in enumerate(RATIOS):
-        span = r * grid.meter
-        whole = abs(span - round(span)) < 1e-9
-        every = int(round(span)) if r < 1 and whole else None
-        s = figure_starts(library, grid.meter, style, every).astype(np.float64)
-        if not whole:  # a fraction of a beat a bar: the bars in between start between two beats, for the clips
-            # the ratio plays within the speed limit (the others dance it only where nothing else fits)
-            turns = Fraction(span).limit_denominator(6).denominator
-            fit = s[in_range[library.beat_clip[s.astype(np.int64)], k]]
-            s = np.concatenate([s, (fit[:, None] + span * np.arange(1, turns)[None]).ravel()])
-            s = s[np.ceil(s) < len(library.beats)]
-            s = s[library.beat_clip[np.ceil(s).astype(np.int64)] == library.beat_clip[np.floor(s).astype(np.int64)]]
-        s = np.round(s, START_DECIMALS)
-        s = s[tried[library.beat_clip[np.floor(s).astype(np.int64)], k]]
-        starts.append(s)
-        ratios.append(np.full(len(s), r))
-    return np.concatenate(starts), np.concatenate(ratios)
-
-
-def beat_index(position: np.ndarray) -> np.ndarray:
-    """The library beat at or before each (maybe fractional) beat position: its clip and energy."""
-    return np.floor(np.asarray(position) + 10.0 ** -START_DECIMALS).astype(np.int64)
-
-
-def nearest_beat(position: np.ndarray) -> np.ndarray:
-    """The library beat nearest each beat position: whose boundary features stand for it."""
-    return np.round(np.asarray(position)).astype(np.int64)
-
-
-def entry_steps(library: MotionLibrary, starts: np.ndarray) -> np.ndarray:
-    """[F]: for a figure entered by a cut at each start, its largest joint step (over that joint's 99th percentile in
-    the library) from the frame before the cut to the end of the cut's blend, at the library's own speed."""
-    ratio = library.step_ratios
-    first = np.floor(beat_frames(library, starts)).astype(np.int64)
-    clip = library.beat_clip[beat_index(starts)]
-    lo = np.maximum(first - 1, library.clip_starts[clip])
-    hi = np.minimum(first + int(round(CUT_BLEND_S * library.fps)) + 1, library.clip_starts[clip + 1] - 1)
-    return np.array([ratio[a : b + 1].max() for a, b in zip(lo, hi, strict=True)])
-
-
-def stretch_kinetics(library: MotionLibrary, beats: int) -> tuple[np.ndarray, np.ndarray]:
-    """[B, 2 x body joints] twice: per beat of the library, each body joint's mean squared speed over the floor and
-    up and down over the `beats` beats after it (within its clip) and over those before it, as standard deviations
-    past the median of all such stretches in the library, less one (0 where within one, and for a stretch of under
-    half as many beats, cut short by its clip's end or start)."""
-    power = library.joint_motion[1]
-    csum = np.concatenate([np.zeros((1, power.shape[1])), np.cumsum(power, axis=0, dtype=np.float64)])
-    frame = np.floor(library.beats).astype(np.int64)
-    clip = library.beat_clip
-    index = np.arange(len(frame))
-    first_beat = np.searchsorted(clip, clip, side="left")
-    end_beat = np.searchsorted(clip, clip, side="right")  # one past the clip's last beat
-    ahead, behind = np.minimum(index + beats, end_beat - 1), np.maximum(index - beats, first_beat)
-
-    def mean(a: np.ndarray, b: np.ndarray, covered: np.ndarray) -> np.ndarray:
-        power_mean = (csum[frame[b]] - csum[frame[a]]) / np.maximum(frame[b] - frame[a], 1)[:, None]
-        return np.where((2 * covered >= beats)[:, None], power_mean, np.nan)
-
-    after, before = mean(index, ahead, ahead - index), mean(behind, index, index - behind)
-    centre, spread = np.nanmedian(after, axis=0), np.maximum(np.nanstd(after, axis=0), 1e-9)
-    return tuple(np.nan_to_num(np.maximum((x - centre) / spread - 1.0, 0.0)).astype(np.float32)
-                 for x in (after, before))
-
-
 def _ranks(x: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
     """Each value's rank as a fraction in [0, 1] among `among` (default: `x` itself; ties share their mean rank:
     all equal, all 0.5)."""
@@ -336,8 +230,8 @@ class _Bars:
         span = np.maximum(np.round(ratios * grid.meter), 1.0)  # the whole beats from its start
         beat = np.arange(nb + 1)
         energy = (np.interp(np.minimum(starts + span, nb), beat, csum) - np.interp(starts, beat, csum)) / span
-        # ranked among the figures that start on a clip's beat: the figures between two beats carry on from them
-        # and do not weigh their clips' energy twice
+        self.fig_energy_raw = energy  # mean joint speed per clip beat (m/s)
+        # ranked among the figures that start on a clip's beat (those between two beats carry on from them)
         self.fig_energy = _ranks(energy, energy[starts == np.round(starts)])
         self.weights = _weights(settings, library.features.shape[1])
         self.feats = library.features * np.sqrt(self.weights)
@@ -352,12 +246,13 @@ class _Bars:
         if settings.section_energy:
             means = np.array([loud[section == k].mean() for k in section])
             loud = (1 - settings.section_energy) * loud + settings.section_energy * means
-        self.music_rank = _ranks(loud)
+        self.music_rank = np.clip(_ranks(loud) + settings.energy_shift, 0.0, 1.0)
         self.off_phrase = np.where(phrase, 0.0, settings.off_phrase)
         if kinetics is None and settings.pile:
             kinetics = stretch_kinetics(library, grid.meter)
         self.kinetics = kinetics if settings.pile else None
         self.entry = entry_steps(library, starts)
+        self.peak = figure_peaks(library, starts, ratios * grid.meter)
         self.limit = max(CALM_LIMIT, float(np.quantile(self.entry, CALM_SHARE)))
         self.cache: dict[int, tuple] = {}
         self.scale: float | None = None
@@ -400,6 +295,9 @@ class _Bars:
                 + settings.out_of_range * excess + self.rng.normal(0.0, settings.noise, len(starts)))
         if (fits & (excess == 0.0)).any():  # the speed limit holds wherever some figure keeps it
             fits &= excess == 0.0
+        fast = self.peak * np.exp(np.nan_to_num(log_speed, nan=0.0)) > PEAK_LIMIT
+        if (fits & ~fast).any():  # and no joint moves faster than the library's dancers do, where a figure keeps it
+            fits &= ~fast
         if match is not None:
             cost = cost + settings.match_style * match.style_away(starts, ratios, n)
             if settings.match:
@@ -472,6 +370,39 @@ def plan(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.G
     return [(float(bars.starts[k]), float(bars.ratios[k])) for k in path[::-1]]
 
 
+def plan_at_clips_energy(library: MotionLibrary, grid: Grid, onset: np.ndarray, rng: np.random.Generator,
+                         style: str | None, settings: Settings, previous: np.ndarray | None,
+                         match: FigureMatch | None, form: SongForm | None,
+                         kinetics: tuple[np.ndarray, np.ndarray] | None) -> list[tuple[float, float]]:
+    """`plan`, its music's energy ranks shifted (`Settings.energy_shift`, the same noise each time) until the dance
+    moves within `ENERGY_TOLERANCE` of the clips' mean speed (`ENERGY_ROUNDS` plans at most, the nearest kept).
+
+    Why: the plan's joins favour calm figures (a cut between calm poses is cheaper, a cut into a calm figure is
+    calm), so a library that mixes calm clips with lively ones was danced at 0.8-0.9 of its clips' speed; matching
+    ranks alone cannot tell how far the choice of figures drifted. A library of one kind of dancing needs no shift."""
+    if not settings.energy_match:
+        return plan(library, grid, onset, rng, style, settings, previous, match, form, kinetics)
+    state = rng.bit_generator.state
+    target = clips_energy(library)
+    tried: list[tuple[float, float, list]] = []  # (how far off, log; the shift; the plan)
+    shift = settings.energy_shift
+    for _ in range(ENERGY_ROUNDS):
+        rng.bit_generator.state = state
+        bars = plan(library, grid, onset, rng, style, replace(settings, energy_shift=shift), previous, match, form,
+                    kinetics)
+        danced = dance_energy(library, grid.beats, grid.bars, bars)
+        tried.append((float(np.log(max(danced, 1e-9) / max(target, 1e-9))), shift, bars))
+        off = tried[-1][0]
+        if abs(off) <= np.log1p(ENERGY_TOLERANCE):
+            break
+        slope = 0.0
+        if len(tried) > 1 and tried[-1][1] != tried[-2][1]:  # the secant through the last two plans
+            slope = (off - tried[-2][0]) / (tried[-1][1] - tried[-2][1])
+        shift = float(np.clip(shift - off / slope if slope > 0 else shift - np.sign(off) * ENERGY_STEP,
+                              -MAX_ENERGY_SHIFT, MAX_ENERGY_SHIFT))
+    return min(tried, key=lambda t: abs(t[0]))[2]
+
+
 def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, start_s: float = 0.0,
                 end_s: float | None = None, takes: int = 1, style: str | None = None,
                 settings: Settings = DEFAULT_SETTINGS, kept: Motion | None = None,
@@ -490,11 +421,30 @@ def choreograph(library: MotionLibrary, analysis: MusicAnalysis, seed: int = 0, 
     kinetics = stretch_kinetics(library, grid.meter) if settings.pile else None
     dances = []
     for _ in range(takes):
-        bars = plan(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
-        figures = [Figure(s, n, grid.beats[a : a + n + 1], r) for (s, r), (a, n) in zip(bars, grid.bars, strict=True)]
+        bars = plan_at_clips_energy(library, grid, onset, rng, style, settings, previous, fit, form, kinetics)
+        figures = _carried_to_the_end(library, [Figure(s, n, grid.beats[a : a + n + 1], r)
+                                                for (s, r), (a, n) in zip(bars, grid.bars, strict=True)], end)
         rendered = render(library, figures, start_s, end, kept)
         dances.append(LibraryDance(rendered.motion, report(library, figures, rendered, grid, start_s, end)))
     return dances
+
+
+def _carried_to_the_end(library: MotionLibrary, figures: list[Figure], end_s: float) -> list[Figure]:
+    """The figures, the last two one figure where the last would be a cut within `CUT_BLEND_S` of the part's end (too
+    late for its blend: the dance would jump in its last frames): the figure before carried on at one speed over
+    both bars, where its clip goes on that far and the speed keeps within its limit."""
+    if len(figures) < 2 or figures[-2].carries_on(figures[-1]) or end_s - figures[-1].times[0] >= CUT_BLEND_S:
+        return figures
+    prev, last = figures[-2:]
+    merged = Figure(prev.start, prev.beats + last.beats, np.concatenate([prev.times, last.times[1:]]), prev.ratio)
+    if merged.end > len(library.beats) - 1 or (library.beat_clip[min(int(np.ceil(merged.end - 1e-9)),
+                                                                     len(library.beats) - 1)]
+                                               != library.beat_clip[beat_index(prev.start)]):
+        return figures
+    clip_s = float(np.diff(beat_frames(library, np.array([merged.start, merged.end])))[0]) / library.fps
+    if _speed_limit_excess(np.log(clip_s / (merged.times[-1] - merged.times[0]))) > 0:
+        return figures
+    return [*figures[:-2], merged]
 
 
 def report(library: MotionLibrary, figures: list[Figure], rendered: Rendered, grid: Grid, start_s: float,

@@ -72,8 +72,8 @@ class LibraryEngine:
     def dance(self, request: DanceRequest, analysis: MusicAnalysis, progress: StageProgress,
               should_cancel: Callable[[], bool]) -> Takes:
         """A figure per bar, time-warped to the song's beats (no foot model: the frames are real capture, and the
-        model, trained on DanceNet's dances, slid them more, 0.58 -> 0.69 of contact frames). A library whose clips
-        name no style is kept to the song's style by the learned match of music and movement (`match.py`)."""
+        model, trained on DanceNet's dances, slid them more: docs/experiments.md). A library whose clips name no
+        style is kept to the song's style by the learned match of music and movement (`match.py`)."""
         timings: dict[str, float] = {}
         t = time.perf_counter()
         library = self.library(request)

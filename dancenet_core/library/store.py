@@ -112,6 +112,14 @@ class MotionLibrary:
         return np.percentile(self.joint_steps[moved], 99, axis=0)
 
     @cached_property
+    def peak_ratios(self) -> np.ndarray:
+        """[N]: each frame's largest body-joint step over that joint's 99.9th percentile in the library: where a
+        clip moves faster than its dancers ever do elsewhere (a leap, or a capture's glitch)."""
+        moved = np.ones(len(self.rotations), bool)
+        moved[self.clip_starts[:-1]] = False
+        return (self.joint_steps / np.maximum(np.percentile(self.joint_steps[moved], 99.9, axis=0), 1e-9)).max(axis=1)
+
+    @cached_property
     def step_ratios(self) -> np.ndarray:
         """[N]: each frame's largest body-joint step over that joint's 99th percentile (`step_p99`)."""
         return (self.joint_steps / self.step_p99).max(axis=1)

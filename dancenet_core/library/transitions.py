@@ -25,19 +25,14 @@ from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
 
 # How long a cut's offset takes to fade: longer than continuing a dance's 0.4 s (`continuation.BLEND_S`), because
-# a cut joins unrelated poses: of the frames a cut blends, those with a joint over the capture's 99th percentile of
-# a joint's step went 7.1% -> 5.7% (the capture itself: 7.2%) and the kinetic FID 9.7 -> 8.3 from 0.4 s to 0.5 s
-# (`dancenet evaluate --library-only --takes 2`). 0.6 s (5.3%) lets a large velocity difference carry the offset
-# further: the made clips' hands then stepped 1.21x their 99th percentile at a cut (1.16x at 0.5 s).
+# a cut joins unrelated poses; longer, a large velocity difference carries the offset further (docs/experiments.md).
 CUT_BLEND_S = 0.5
 # A cut whose fading offset would move some joint further in a frame than the library's dancers do (its 99th
 # percentile step) fades longer, up to this: a slower fade moves the joints less per frame.
 MAX_BLEND_S = 1.2
 # Shares of a cut's velocity difference its fade carries, tried in turn until no joint steps past its percentile:
 # carrying all of it, the fade must take back the ground the difference covers (about half the difference again,
-# 0.6 into the fade, whatever its length). Largest step at a cut 1.22x -> 1.07x the 99th percentile, frames over it
-# 0.3% -> 0.1% (`dancenet evaluate --library-only --takes 2`, with the hold limited as `hold_stance` says); a
-# quarter as well: the last cut over it (1.004x) under it.
+# 0.6 into the fade, whatever its length).
 VELOCITY_KEPT = (1.0, 0.5, 0.25, 0.0)
 # A foot is held while it stands: near the floor and slower than this in its source clip. The capture's own contacts
 # (`representation.CONTACT_SPEED_MPS`, 0.35 m/s) at the largest time-warp (about 30% faster) are 0.45 m/s.
@@ -187,19 +182,15 @@ def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | Non
     the standing foot as a dancer's is; the contacts are the source's so that a blend's motion of a planted foot is
     held too. The correction is smoothed (`HOLD_SMOOTH_FRAMES`), so a held foot creeps a little at a contact's ends.
 
-    Why: the capture's toes creep while standing (the training dances slide 0.53 of their contact frames, the test
-    dances 0.50), the time-warp speeds that creep up (15% faster: 4 points more) and a blend moves a planted foot
-    (0.68 of contact frames slid within 0.4 s of a cut); moving the root rather than the legs keeps every pose of
-    the capture. On the evaluation (`dancenet evaluate --library-only --takes 2`) the foot slide went 0.613 -> 0.452
-    (real 0.500) and the root extent 1.17x -> 1.11x real's; the correction unsmoothed shook the body (kinetic FID
-    8.5 -> 13.3; smoothed 9.7).
+    Why: the capture's toes creep while standing, the time-warp speeds that creep up and a blend moves a planted
+    foot; moving the root rather than the legs keeps every pose of the capture. Unsmoothed, the correction shakes
+    the body (docs/experiments.md).
 
     With `step_limit` (how far each body joint may step, [BODY_JOINTS] or per step [T - 1, BODY_JOINTS]: its 99th
     percentile, or its source clip's own step where that is further) a frame's correction is scaled down (by
     quarters) where it would move some joint further than that while the motion itself does not: the blend
-    moves a planted foot, and carrying the body after it pushed the hands past their percentile 5 frames into a
-    cut: of the evaluation's 412 cuts, 24 -> 2 over it, largest 1.39x -> 1.07x, foot slide 0.458 -> 0.460
-    (`dancenet evaluate --library-only --takes 2`)."""
+    moves a planted foot, and carrying the body after it pushes the hands past their percentile a few frames into
+    a cut."""
     toes = motion.end_effectors()[:, list(TOE_ENDS)]
     step = np.diff(toes[:, :, [0, 2]], axis=0)
     count = stance.sum(1, keepdims=True)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from test_library import dancer, library_of, song
 
-from dancenet_core.library.choreography import CALM_LIMIT, Settings, beat_index, entry_steps, plan, song_grid
+from dancenet_core.library.choreography import CALM_LIMIT, Settings, plan, song_grid
+from dancenet_core.library.figures import beat_index, entry_steps
 from dancenet_core.library.transitions import beat_frames
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import ONSET_COL

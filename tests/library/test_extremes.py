@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from test_library import dancer, library_of, song
 
-from dancenet_core.library.choreography import Settings, plan, song_grid, stretch_kinetics
+from dancenet_core.library.choreography import Settings, plan, song_grid
+from dancenet_core.library.figures import stretch_kinetics
 from dancenet_core.library.store import MotionLibrary
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import ONSET_COL

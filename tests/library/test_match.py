@@ -16,7 +16,8 @@ from test_library import FPS, _cli, dancer, library_of, song
 from dancenet_core.bvh import write_bvh
 from dancenet_core.errors import DanceNetError
 from dancenet_core.library import build, engine
-from dancenet_core.library.choreography import Settings, beat_index, choreograph
+from dancenet_core.library.choreography import Settings, choreograph
+from dancenet_core.library.figures import beat_index
 from dancenet_core.library.match import (
     SAMPLES,
     FigureMatch,

@@ -15,10 +15,21 @@ from dancenet_core.bvh import write_bvh
 from dancenet_core.commands.library import clip_table
 from dancenet_core.library.analysis import MIN_READ_S, analyze_clip
 from dancenet_core.library.build import build_library
-from dancenet_core.library.choreography import choreograph, clip_usage
+from dancenet_core.library.choreography import (
+    Settings,
+    choreograph,
+    clip_usage,
+    clips_energy,
+    dance_energy,
+    plan,
+    plan_at_clips_energy,
+    song_grid,
+)
 from dancenet_core.library.loops import around_loop, loop_period
 from dancenet_core.library.store import MotionLibrary
+from dancenet_core.library.transitions import CUT_BLEND_S
 from dancenet_core.motion import Motion
+from dancenet_core.music.features import ONSET_COL
 from dancenet_core.shaping.floor import floor_track, lowest_point
 from dancenet_core.shaping.takes import shape_take
 from dancenet_core.skeleton import BODY_JOINTS, JOINT_INDEX, TOE_ENDS
@@ -152,3 +163,61 @@ def test_how_many_clips_a_dance_uses_and_how_evenly() -> None:
     library = _library(*[(f"c{k}", dancer(30, 100 + 4 * k, amplitude=0.3 + 0.05 * k, phase=k)) for k in range(4)])
     summary = choreograph(library, song(40, 104), seed=1)[0].report.summary()
     assert 1.0 <= summary["effective_clips"] <= summary["clips"] <= 4
+
+
+def test_the_dance_moves_as_fast_as_the_clips() -> None:
+    """A library of calm clips and one lively one: with `energy_match` the plan's energy ranks are shifted until the
+    dance's mean joint speed is the clips' (within 3%, or the nearest of its tries), whatever the joins prefer."""
+    library = _library(*[(f"calm{k}", dancer(30, 100 + 5 * k, amplitude=0.2, phase=k)) for k in range(3)],
+                       ("lively", dancer(30, 110, amplitude=0.7)))
+    music = song(40, 108, loud_from=20)
+    grid = song_grid(music, 0.0, 40.0)
+    onset = music.features[:, ONSET_COL]
+    target = clips_energy(library)
+    for seed in range(3):
+        fixed = plan(library, grid, onset, np.random.default_rng(seed), settings=Settings(energy_match=False))
+        matched = plan_at_clips_energy(library, grid, onset, np.random.default_rng(seed), None,
+                                       Settings(energy_match=True), None, None, None, None)
+        off = abs(np.log(dance_energy(library, grid.beats, grid.bars, matched) / target))
+        assert off <= abs(np.log(dance_energy(library, grid.beats, grid.bars, fixed) / target)) + 1e-9
+        assert off <= np.log(1.06), (seed, off)
+
+
+def _glitchy(seconds: float) -> Motion:
+    """A dancer whose right forearm is thrown half a turn for one frame twice in the clip (a capture's glitch)."""
+    m = dancer(seconds, 110, amplitude=0.5, phase=2.0)
+    for at in (0.3, 0.7):
+        m.rotations[int(at * m.num_frames), JOINT_INDEX["right_elbow"], 1] += 1.6
+    return m
+
+
+def test_no_joint_moves_faster_than_the_dancers_ever_do(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Figures whose joints, as the warp plays them, pass `PEAK_LIMIT` times their 99.9th percentile in the library
+    are danced only where nothing else fits: the dance keeps every joint within 1.5 times it."""
+    library = _library(*[(f"c{k}", dancer(40, 104 + 3 * k, amplitude=0.4 + 0.05 * k, phase=k)) for k in range(4)],
+                       ("glitchy", _glitchy(40)))
+    steps = library.joint_steps[library.joint_steps.sum(axis=1) > 0]
+    p999 = np.percentile(steps, 99.9, axis=0)
+
+    def fastest(seed: int) -> float:
+        dance = choreograph(library, song(60, 110, loud_from=30), seed=seed)[0]
+        made = np.linalg.norm(np.diff(dance.motion.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
+        return float((made / p999).max())
+
+    assert max(fastest(s) for s in range(4)) <= 1.5
+    monkeypatch.setattr("dancenet_core.library.choreography.PEAK_LIMIT", np.inf)
+    assert max(fastest(s) for s in range(4)) > 1.5  # without the limit, the glitches are danced
+
+
+def test_no_cut_in_the_last_frames_of_a_part() -> None:
+    """A part that ends just after a downbeat: the figure before carries on into that last sliver of a bar rather
+    than a cut the blend has no frames to fade (the dance would jump in its last frame), at one speed over both bars
+    within the speed limit."""
+    library = _library(*[(f"c{k}", dancer(30, 104 + 4 * k, amplitude=0.3 + 0.1 * k, phase=k)) for k in range(4)])
+    music = song(20, 120)
+    end = float(music.downbeat_times[4]) + 0.05
+    for seed in range(4):
+        dance = choreograph(library, music, seed=seed, end_s=end, settings=Settings(noise=2.0, cut=0.0))[0]
+        frames = dance.motion.num_frames
+        assert all(c < frames - CUT_BLEND_S * FPS for c in dance.report.cuts), (seed, dance.report.cuts, frames)
+        assert dance.report.max_warp <= 0.15 + 1e-6  # the figure carried on within its speed limit
