@@ -75,12 +75,15 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
 
 def clip_table(library: MotionLibrary) -> str:
-    """One line per clip: its name, style, length, tempo, meter, confidence and what they were read from."""
+    """One line per clip: its name, the skeleton's convention it was read in, style, length, tempo, meter, confidence
+    and what they were read from."""
     width = min(max(len(n) for n in library.names), 40)
-    lines = [f"{'clip':{width}s}  {'style':10s} {'length':>7s} {'tempo':>9s} {'meter':>5s} {'sure':>5s}  from"]
+    skeletons = library.skeletons or [""] * library.num_clips
+    lines = [f"{'clip':{width}s}  {'skeleton':16s} {'style':10s} {'length':>7s} {'tempo':>9s} {'meter':>5s} "
+             f"{'sure':>5s}  from"]
     for c, name in enumerate(library.names):
         seconds = (library.clip_starts[c + 1] - library.clip_starts[c]) / library.fps
-        lines.append(f"{name[:width]:{width}s}  {library.styles[c][:10] or '-':10s} {seconds:6.1f}s "
-                     f"{library.tempo_bpm[c]:5.1f} BPM {library.meter[c]:3d}/4 {library.confidence[c]:5.2f}  "
-                     f"{library.source[c]}")
+        lines.append(f"{name[:width]:{width}s}  {skeletons[c][:16] or '-':16s} {library.styles[c][:10] or '-':10s} "
+                     f"{seconds:6.1f}s {library.tempo_bpm[c]:5.1f} BPM {library.meter[c]:3d}/4 "
+                     f"{library.confidence[c]:5.2f}  {library.source[c]}")
     return "\n".join(lines)

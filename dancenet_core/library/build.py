@@ -39,7 +39,8 @@ from ..errors import DanceNetError, GenerationCancelled, first_line
 from ..jointmap import armature_pose, rotation_motion
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rigmap import BoneMap, auto_map, humanoid_joints, load_file
+from ..rigmap import BoneMap, auto_map, load_file
+from ..rigmap.humanoid import mapped_humanoid
 from ..shaping.floor import floor_track
 from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
@@ -53,8 +54,14 @@ MIN_CLIP_S = 1.0  # shorter clips hold no bar of any dance
 def read_clip(path: Path, bone_map: BoneMap | None = None) -> Motion:
     """A BVH clip of the folder on our 55 joints: metres, Y up, 25 fps, feet on the floor; a one-line DanceNetError
     when its skeleton is no humanoid's (by `bone_map` if given, else by Auto: `bvhclip.bvh_rig`)."""
+    return _bvh_clip(path, bone_map)[0]
+
+
+def _bvh_clip(path: Path, bone_map: BoneMap | None) -> tuple[Motion, str]:
+    """`read_clip`, and the convention its skeleton was read in (the bone map that read it)."""
     rig = bvh_rig(path, bone_map)
-    return _as_clip(rotation_motion(armature_pose(rig.joints, rig.rest, rig.pose, rig.fps, path.name)), path.name)
+    motion = rotation_motion(armature_pose(rig.joints, rig.rest, rig.pose, rig.fps, path.name))
+    return _as_clip(motion, path.name), rig.convention
 
 
 def _as_clip(motion: Motion, name: str) -> Motion:
@@ -219,29 +226,30 @@ def build_library(folder: str | Path, force: bool = False, report: Callable[[str
     if should_cancel is not None and should_cancel():
         raise GenerationCancelled
     hints = clip_hints(folder, files)
-    clips, left = _read_clips(
+    clips, skeletons, left = _read_clips(
         [(f.name, str(f.relative_to(folder)), hints[f],
           partial(_fbx_clip, f, (fbx_samples or {}).get(f), hints[f], saved_maps) if is_fbx(f)
-          else partial(read_clip, f, hints[f].bone_map)) for f in files], report, progress, should_cancel, workers)
+          else partial(_bvh_clip, f, hints[f].bone_map)) for f in files], report, progress, should_cancel, workers)
     notes += left
     if not clips:
         first = left[0].removeprefix("left out ")
         raise DanceNetError(f"none of the {len(files)} clips in {folder} could be read: {first}")
-    return _saved(MotionLibrary.from_clips(clips, tuple(notes)), path), path
+    return _saved(MotionLibrary.from_clips(clips, tuple(notes), skeletons), path), path
 
 
-def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints, saved_maps: Path | None) -> Motion:
-    """An FBX file's clip from what Blender sampled of it: its bones mapped onto our joints (by the manifest's bone
-    map, else Auto, with the user's `saved_maps` where given)."""
+def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints, saved_maps: Path | None
+              ) -> tuple[Motion, str]:
+    """An FBX file's clip from what Blender sampled of it, and the convention its bones were read in: its bones
+    mapped onto our joints (by the manifest's bone map, else Auto, with the user's `saved_maps` where given)."""
     if not isinstance(sampled, fbx.RigSample):
         raise DanceNetError(f"{path.name}: {sampled or 'not sampled in Blender'}")
     bones = sampled.rest_bones()
     bone_map = hint.bone_map or (auto_map(bones, path.name, saved_maps) if saved_maps is not None else None)
-    joints = humanoid_joints(bones, path.name, bone_map)
+    convention, joints = mapped_humanoid(bones, path.name, bone_map)
     order = sorted(joints)
     index = [sampled.names.index(joints[j]) for j in order]
     return armature_motion(ArmatureClip(path.name, hint.style, order, sampled.rest[index], sampled.pose[:, index],
-                                        sampled.fps, hint.bpm, hint.meter))
+                                        sampled.fps, hint.bpm, hint.meter)), convention
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:
@@ -264,21 +272,28 @@ def build_armature_library(clips: Sequence[ArmatureClip | str], key: str, notes:
         return library, path
     if not clips:
         raise DanceNetError(f"no action animates a humanoid armature in this file{': ' + notes[0] if notes else ''}")
-    done, left = _read_clips(
+    done, skeletons, left = _read_clips(
         [("a clip", c, ClipHints(), partial(_not_sampled, c)) if isinstance(c, str)
-         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), partial(armature_motion, c)) for c in clips],
+         else (c.name, c.name, ClipHints(c.style, c.bpm, c.meter), partial(_rig_clip, c)) for c in clips],
         report, progress, should_cancel)
     if not done:
         raise DanceNetError(f"none of the {len(clips)} actions could be read: {left[0].removeprefix('left out ')}")
-    return _saved(MotionLibrary.from_clips(done, tuple([f"left out {n}" for n in notes] + left)), path), path
+    return _saved(MotionLibrary.from_clips(done, tuple([f"left out {n}" for n in notes] + left), skeletons),
+                  path), path
 
 
-def _not_sampled(why: str) -> Motion:
+def _rig_clip(clip: ArmatureClip) -> tuple[Motion, str]:
+    """A rig's clip of the open file, read by the rig's own bone map (the add-on's choice for it)."""
+    return armature_motion(clip), "the rig's bone map"
+
+
+def _not_sampled(why: str) -> tuple[Motion, str]:
     """A clip Blender could not sample: the line it gave."""
     raise DanceNetError(why)
 
 
-def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], Motion]]], report: Callable[[str], object],
+def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], tuple[Motion, str]]]],
+                report: Callable[[str], object],
                 progress: StageProgress | None, should_cancel: Callable[[], bool] | None, workers: int = 1
                 ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
     """Each (shown name, clip name, hints, read) read and analysed, by `workers` processes side by side where
@@ -307,21 +322,24 @@ def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], Motion]]
             if progress is not None:
                 progress(f"reading {item[0]}", i / len(items))
             results.append(_read_one(item))
-    clips, notes = [], []
+    clips, skeletons, notes = [], [], []
     for r in results:
         if isinstance(r, str):
             notes.append(r)
             report(r)
         else:
-            clips.append(r)
-    return clips, notes
+            clips.append(r[0])
+            skeletons.append(r[1])
+    return clips, skeletons, notes
 
 
-def _read_one(item: tuple[str, str, ClipHints, Callable[[], Motion]]) -> tuple[str, str, Motion, ClipAnalysis] | str:
-    """A clip read and analysed, or the "left out ..." line saying why it could not be."""
+def _read_one(item: tuple[str, str, ClipHints, Callable[[], tuple[Motion, str]]]
+              ) -> tuple[tuple[str, str, Motion, ClipAnalysis], str] | str:
+    """A clip read and analysed with the convention its skeleton was read in, or the "left out ..." line saying why
+    it could not be."""
     _shown, name, hint, read = item
     try:
-        motion = read()
+        motion, skeleton = read()
     except DanceNetError as e:
         return f"left out {first_line(e)}"
-    return name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)
+    return (name, hint.style, motion, analyze_clip(motion, hint.style, bpm=hint.bpm, meter=hint.meter)), skeleton

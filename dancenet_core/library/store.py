@@ -9,8 +9,8 @@ import hashlib
 import json
 import os
 import zipfile
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -37,8 +37,9 @@ class MotionLibrary:
     clip_starts[c + 1]); per beat (all clips, in order): its frame (sub-frame, counted from the clip's start plus
     clip_starts), clip, downbeat flag, boundary features [B, FEATURE_DIM] and energy (mean joint speed to the
     next beat, m/s); per clip: name, style, tempo and meter, how sure the analysis is of them (`confidence`, 0-1)
-    and what they were read from (`source`: the motion, the style's meter, the manifest...); offsets: the skeleton
-    every dance is built on."""
+    and what they were read from (`source`: the motion, the style's meter, the manifest...), and the convention of
+    the skeleton it was read from (`skeletons`: the bone map that read it, "Mixamo", "VRM + shape"...; empty for a
+    library built without them); offsets: the skeleton every dance is built on."""
 
     rotations: np.ndarray
     root_positions: np.ndarray
@@ -61,6 +62,7 @@ class MotionLibrary:
     # whole library: the build computes them for a library whose clips name no style (the libraries the match
     # dances), so that its first dance reads them (`match.frames_of`)
     match_frames: np.ndarray | None = None
+    skeletons: list[str] = field(default_factory=list)
 
     @property
     def num_clips(self) -> int:
@@ -125,8 +127,8 @@ class MotionLibrary:
         return (self.joint_steps / self.step_p99).max(axis=1)
 
     @classmethod
-    def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = ()
-                   ) -> MotionLibrary:
+    def from_clips(cls, clips: list[tuple[str, str, Motion, ClipAnalysis]], notes: tuple[str, ...] = (),
+                   skeletons: Sequence[str] = ()) -> MotionLibrary:
         """A library of (name, style, motion at LIBRARY_FPS, its analysis) clips; the skeleton is their mean. A clip
         that loops is laid end to end (`loops.danced_around`); one too short for its tempo to be read takes the
         library's (`analysis.with_assumed_tempi`)."""
@@ -151,13 +153,14 @@ class MotionLibrary:
             confidence=np.array([a.confidence for *_, a in clips], dtype=np.float64),
             source=[a.source for *_, a in clips],
             notes=notes,
+            skeletons=list(skeletons),
         )
 
     def save(self, path: str | Path, compact: bool = False) -> None:
         """The arrays as an .npz; `compact` (a library that ships) stores the joint rotations as float16
         (0.002 rad apart at most) and compresses, for about a third of the bytes; `load` reads either."""
         meta = {"version": LIBRARY_VERSION, "fps": self.fps, "names": self.names, "styles": self.styles,
-                "source": self.source, "notes": list(self.notes)}
+                "source": self.source, "notes": list(self.notes), "skeletons": self.skeletons}
         unsorted = {} if self.match_frames is None else {"match_frames": self.match_frames}
         with atomic_open(path, "wb") as f:
             (np.savez_compressed if compact else np.savez)(
@@ -181,6 +184,7 @@ class MotionLibrary:
                           list(meta["source"]), float(meta["fps"]), tuple(meta["notes"]))
                 # how far the dancers step, measured once at the build (a forward kinematics pass over every frame)
                 lib.__dict__["step_p99"], lib.__dict__["step_ratios"] = z["step_p99"], z["step_ratios"]
+                lib.skeletons = [str(k) for k in meta.get("skeletons", [])]
                 if "match_frames" in z:
                     lib.match_frames = z["match_frames"]
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
@@ -189,6 +193,7 @@ class MotionLibrary:
         if (lib.rotations.shape[1:] != (lib.offsets.shape[0], 3) or lib.root_positions.shape != (n, 3)
                 or lib.clip_starts[-1] != n or len(lib.names) + 1 != len(lib.clip_starts)
                 or not len(lib.names) == len(lib.confidence) == len(lib.source)
+                or len(lib.skeletons) not in (0, len(lib.names))
                 or lib.step_ratios.shape != (n,) or lib.step_p99.shape != (BODY_JOINTS,)
                 or lib.features.shape != (b, FEATURE_DIM) or not len(lib.beat_clip) == len(lib.downbeat) == b
                 or (lib.match_frames is not None and len(lib.match_frames) != n)):

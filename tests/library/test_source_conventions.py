@@ -188,3 +188,19 @@ def test_our_own_clips_read_exactly(tmp_path: Path) -> None:
     turn = Rotation.from_rotvec(got.rotations[:, kept].reshape(-1, 3)).inv() * Rotation.from_rotvec(
         want.rotations[:, kept].reshape(-1, 3))
     assert np.degrees(turn.magnitude()).max() < 1e-3
+
+
+def test_the_build_table_names_each_clips_convention_and_the_library_keeps_it(tmp_path: Path) -> None:
+    from dancenet_core.commands.library import clip_table
+    from dancenet_core.library.store import MotionLibrary
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    names = ("mixamo", "mmd", "unreal")
+    for i, name in enumerate(names):
+        write_bvh_data(folder / f"{i}_{name}.bvh", convention_bvh(dance(seconds=4.0, seed=i), CONVENTIONS[name]))
+    library, path = build_library(folder, report=lambda _line: None)
+    assert library.skeletons == [FOUND[n] for n in names]
+    rows = clip_table(library).splitlines()[1:]
+    assert [FOUND[n][:16] in row for row, n in zip(rows, names, strict=True)] == [True] * 3
+    assert MotionLibrary.load(path).skeletons == library.skeletons
