@@ -11,12 +11,10 @@ from pathlib import Path
 
 import pytest
 from scene_helpers import bpy, generate, panel_screenshot
-from test_addon_library import _clip, real  # noqa: F401 (real: the core's generator, a fixture)
+from test_addon_library import built_library, real  # noqa: F401 (real: the core's generator, a fixture)
 
-from dancenet_core.bvh import write_bvh
 from dancenet_core.engines.styles import load_style_model
 from dancenet_core.library import engine as library_engine
-from dancenet_core.library.build import build_library
 from dancenet_core.licence import NON_COMMERCIAL_FILES
 
 _opened: list[str] | None = None  # the files opened while recording; None: not recording
@@ -32,12 +30,19 @@ sys.addaudithook(_hook)  # hooks cannot be removed: this one records only betwee
 
 @pytest.fixture(scope="module")
 def own_clips(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("own")
-    for name, bpm, phase in (("waltz/a", 84, 0.0), ("waltz/b", 90, 1.0), ("tango/c", 126, 2.0)):
-        (folder / name).parent.mkdir(exist_ok=True)
-        write_bvh(folder / f"{name}.bvh", _clip(12.0, bpm, phase))
-    build_library(folder, report=lambda _line: None)
-    return folder
+    return built_library(tmp_path_factory.mktemp("own"), (("waltz/a", 84, 0.0), ("waltz/b", 90, 1.0),
+                                                          ("tango/c", 126, 2.0)))
+
+
+def _recorded(scene, real, folder: Path, commercial: bool) -> tuple[set[str], list[str]]:  # noqa: F811
+    """Generate Dance on the library of `folder`, and every file it opened."""
+    global _opened
+    _opened = []
+    try:
+        done = generate(scene, real, engine="library", library=str(folder), commercial=commercial)
+    finally:
+        opened, _opened = _opened, None
+    return done, opened
 
 
 def test_the_switch_says_what_it_needs(scene, addon):
@@ -52,15 +57,10 @@ def test_the_switch_says_what_it_needs(scene, addon):
 
 
 def test_generate_dance_for_commercial_use_opens_no_non_commercial_file(scene, addon, real, own_clips):  # noqa: F811
-    global _opened
     load_style_model.cache_clear()
     library_engine._load_match.cache_clear()
     library_engine._load_default.cache_clear()
-    _opened = []
-    try:
-        done = generate(scene, real, engine="library", library=str(own_clips), commercial=True)
-    finally:
-        opened, _opened = _opened, None
+    done, opened = _recorded(scene, real, own_clips, commercial=True)
     assert done == {"FINISHED"}
     assert opened, "the hook recorded nothing (the built library is read at least)"
     bad = [p for p in opened if any(f in Path(p).as_posix() for f in NON_COMMERCIAL_FILES)]
@@ -72,12 +72,7 @@ def test_generate_dance_for_commercial_use_opens_no_non_commercial_file(scene, a
 def test_the_default_generate_dance_is_seen_opening_them(scene, addon, real, own_clips):  # noqa: F811
     """The recorder's control: the same dance without the switch opens the style classifier (its styles are the
     library's) and says so in no licence of its own."""
-    global _opened
     load_style_model.cache_clear()
-    _opened = []
-    try:
-        done = generate(scene, real, engine="library", library=str(own_clips), commercial=False)
-    finally:
-        opened, _opened = _opened, None
+    done, opened = _recorded(scene, real, own_clips, commercial=False)
     assert done == {"FINISHED"}
     assert any(Path(p).as_posix().endswith("dancenet_core/weights/style_classifier.npz") for p in opened)

@@ -39,15 +39,20 @@ def _clip(seconds: float, bpm: float, phase: float) -> Motion:
     return Motion(rot, root, fps)
 
 
-@pytest.fixture(scope="module")
-def library_folder(tmp_path_factory) -> Path:
-    """A built library of three 12-s clips in two styles (folders)."""
-    folder = tmp_path_factory.mktemp("library")
-    for name, bpm, phase in (("swing/a", 110, 0.0), ("swing/b", 120, 1.0), ("salsa/c", 100, 2.0)):
+def built_library(folder: Path, clips: tuple[tuple[str, float, float], ...]) -> Path:
+    """`folder` as a built library of 12-s clips, each (style/name, its tempo, its phase)."""
+    for name, bpm, phase in clips:
         (folder / name).parent.mkdir(exist_ok=True)
         write_bvh(folder / f"{name}.bvh", _clip(12.0, bpm, phase))
     build_library(folder, report=lambda _line: None)
     return folder
+
+
+@pytest.fixture(scope="module")
+def library_folder(tmp_path_factory) -> Path:
+    """A built library of three 12-s clips in two styles (folders)."""
+    return built_library(tmp_path_factory.mktemp("library"),
+                         (("swing/a", 110, 0.0), ("swing/b", 120, 1.0), ("salsa/c", 100, 2.0)))
 
 
 @pytest.fixture
