@@ -11,7 +11,6 @@ damaged), while a worker that died or a missing Blender module is never cached.
 
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import json
 import os
@@ -31,6 +30,7 @@ from ..atomic import atomic_path
 from ..environment import cache_root
 from ..errors import DanceNetError
 from ..rigmap import RestBone
+from .store import file_sha256
 
 SAMPLE_VERSION = "fbx-sample-1"  # change whenever what a sample holds changes
 DANCER_M = (0.5, 2.5)  # a rig whose rest pose is this tall is taken to be in metres already
@@ -104,17 +104,9 @@ def load_sample(path: Path) -> RigSample | str | None:
         return None
 
 
-def digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()[:32]
-
-
 def sample_path(path: Path) -> Path:
     """Where the sample of the FBX file `path` (by its content) is cached."""
-    return cache_root() / SAMPLE_VERSION / f"{digest(path)}.npz"
+    return cache_root() / SAMPLE_VERSION / f"{file_sha256(path).hex()[:32]}.npz"
 
 
 def cached_sample(path: Path) -> RigSample | str | None:
@@ -175,13 +167,14 @@ def sample_files(files: Sequence[Path], workers: int, done: Callable[[Path], obj
     (each reads one file after another); `done` hears each file as it is read. A file that cannot be sampled
     gets the line saying why instead (without its name)."""
     out: dict[Path, RigSample | str] = {}
-    todo: queue.SimpleQueue[Path] = queue.SimpleQueue()
+    todo: queue.SimpleQueue[tuple[Path, Path]] = queue.SimpleQueue()
     for f in files:
-        if (hit := cached_sample(f)) is not None:
+        where = sample_path(f)  # each file hashed once
+        if (hit := load_sample(where)) is not None:
             out[f] = hit
             done(f)
         else:
-            todo.put(f)
+            todo.put((f, where))
     lock = threading.Lock()
 
     def run() -> None:
@@ -189,10 +182,9 @@ def sample_files(files: Sequence[Path], workers: int, done: Callable[[Path], obj
         try:
             while not (should_cancel is not None and should_cancel()):
                 try:
-                    f = todo.get_nowait()
+                    f, where = todo.get_nowait()
                 except queue.Empty:
                     return
-                where = sample_path(f)
                 worker = worker or Worker()
                 try:
                     why = worker.sample(f.resolve(), where)
