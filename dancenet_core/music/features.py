@@ -207,11 +207,8 @@ def cache_key(path: str | Path) -> str:
     """Hash of the file's bytes and of every setting that changes the result, so edits invalidate it."""
     import madmom  # madmom takes ~0.9 s to load: only an analysis that misses the cache loads it
 
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    settings = json.dumps(
+    return song_key(
+        path,
         [
             FEATURE_VERSION,
             madmom.__version__,
@@ -223,10 +220,40 @@ def cache_key(path: str | Path) -> str:
             list(BEATS_PER_BAR),
             MEL_BANDS,
             "blas-threads-1",  # the networks' sums in one order (`one_blas_thread`); before, in as many as threads
-        ]
+        ],
     )
-    h.update(settings.encode())
+
+
+def song_key(path: str | Path, settings: list) -> str:
+    """Hash of a song file's bytes and of the `settings` that change its analysis (a cache entry's name)."""
+    with open(path, "rb") as f:
+        h = hashlib.file_digest(f, "sha256")
+    h.update(json.dumps(settings).encode())
     return h.hexdigest()[:40]
+
+
+def cached_analysis(entry: Path | None, compute: Callable[[], MusicAnalysis], version: str = FEATURE_VERSION,
+                    report: Progress | None = None) -> MusicAnalysis:
+    """The analysis cached at `entry` with `version`, else `compute()`d and cached there (None: no cache). A
+    damaged, stale or unreadable entry is computed again; one that cannot be written costs only the cache."""
+    if entry is not None:
+        try:
+            if entry.is_file():
+                if report is not None:
+                    report(1.0)
+                return MusicAnalysis.load(entry, version)
+        except (ValueError, OSError) as e:
+            print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
+                  "analysing the song again", file=sys.stderr)
+    result = compute()
+    if entry is not None:
+        try:
+            result.save(entry, version)
+        except (DanceNetError, ValueError, OSError) as e:  # a full disk, a cache folder that cannot be (a file,
+            # read-only) or a damaged result lose the cache entry only
+            print(f"dancenet: the music analysis is not cached ({first_line(e, 160)}); carrying on without "
+                  "the cache (set DANCENET_CACHE to a folder you can write to)", file=sys.stderr)
+    return result
 
 
 def analyze_music(
@@ -244,25 +271,13 @@ def analyze_music(
     if use_cache:
         entry = Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
         entry = entry / f"{cache_key(_existing(path))}.npz"
-        try:
-            result = MusicAnalysis.load(entry) if entry.is_file() else None
-        except (ValueError, OSError) as e:  # truncated, damaged, stale or unreadable: recompute and replace it
-            print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
-                  "analysing the song again", file=sys.stderr)
-            result = None
-        if result is not None:
-            report(1.0)
-            return result if with_mel else _without_mel(result)
-    audio = load_audio(path)
-    report(0.02)
-    result = analyze_audio(audio, workers=workers, progress=lambda f: report(0.02 + 0.98 * f))
-    if entry is not None:
-        try:
-            result.save(entry)
-        except (DanceNetError, ValueError, OSError) as e:  # a full disk, a cache folder that cannot be (a file,
-            # read-only) or a damaged result lose the cache entry only
-            print(f"dancenet: the music analysis is not cached ({first_line(e, 160)}); carrying on without "
-                  "the cache (set DANCENET_CACHE to a folder you can write to)", file=sys.stderr)
+
+    def compute() -> MusicAnalysis:
+        audio = load_audio(path)
+        report(0.02)
+        return analyze_audio(audio, workers=workers, progress=lambda f: report(0.02 + 0.98 * f))
+
+    result = cached_analysis(entry, compute, report=report)
     return result if with_mel else _without_mel(result)
 
 

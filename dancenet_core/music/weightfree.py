@@ -31,9 +31,6 @@ bench/weightfree_beats.py.
 
 from __future__ import annotations
 
-import hashlib
-import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +39,6 @@ from scipy.ndimage import maximum_filter1d
 from scipy.signal import correlate
 from scipy.sparse import csr_array
 
-from ..errors import first_line
 from ..progress import Progress
 from .audio import MADMOM_SAMPLE_RATE, Audio, load_audio
 from .features import (
@@ -55,7 +51,9 @@ from .features import (
     ONSET_COL,
     FeatureSpec,
     MusicAnalysis,
+    cached_analysis,
     default_cache_dir,
+    song_key,
 )
 
 WEIGHTFREE_VERSION = "music-features-weightfree-1"  # change whenever any computation below changes
@@ -80,12 +78,7 @@ FLOOR = 0.01  # the onsets' log compression is linear below this share of the so
 
 def cache_key(path: str | Path) -> str:
     """Hash of the file's bytes and of this analysis' version."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    h.update(json.dumps([WEIGHTFREE_VERSION, SR, ONSET_FRAME, CHROMA_FRAME]).encode())
-    return "wf-" + h.hexdigest()[:40]
+    return "wf-" + song_key(path, [WEIGHTFREE_VERSION, SR, ONSET_FRAME, CHROMA_FRAME])
 
 
 def analyze_music_weightfree(path: str | Path, *, cache_dir: str | Path | None = None, use_cache: bool = True,
@@ -95,20 +88,7 @@ def analyze_music_weightfree(path: str | Path, *, cache_dir: str | Path | None =
     entry = None
     if use_cache and Path(path).is_file() and Path(path).stat().st_size:
         entry = (Path(cache_dir).expanduser() if cache_dir else default_cache_dir()) / f"{cache_key(path)}.npz"
-        try:
-            if entry.is_file():
-                report(1.0)
-                return MusicAnalysis.load(entry, WEIGHTFREE_VERSION)
-        except (ValueError, OSError) as e:
-            print(f"dancenet: the cached analysis {entry.name} cannot be used ({first_line(e, 120)}); "
-                  "analysing the song again", file=sys.stderr)
-    result = analyze_audio_weightfree(load_audio(path))
-    if entry is not None:
-        try:
-            result.save(entry, WEIGHTFREE_VERSION)
-        except (ValueError, OSError) as e:
-            print(f"dancenet: the music analysis is not cached ({first_line(e, 160)}); carrying on without "
-                  "the cache (set DANCENET_CACHE to a folder you can write to)", file=sys.stderr)
+    result = cached_analysis(entry, lambda: analyze_audio_weightfree(load_audio(path)), WEIGHTFREE_VERSION)
     report(1.0)
     return result
 
