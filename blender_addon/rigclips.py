@@ -105,7 +105,8 @@ def sample_fbx(path: Path) -> RigSample:
     the file's content; a one-line DanceNetError when it holds none a library can use (also cached)."""
     from dancenet_core.library import fbx, fbx_worker
 
-    if (hit := fbx.cached_sample(path)) is not None:
+    where = fbx.sample_path(path)  # the file hashed once
+    if (hit := fbx.load_sample(where)) is not None:
         if isinstance(hit, str):
             raise DanceNetError(hit)
         return hit
@@ -117,9 +118,9 @@ def sample_fbx(path: Path) -> RigSample:
             sample = fbx_worker.sample_armature(rig, scene, frames, song.scene_fps(scene))
         except DanceNetError as e:
             if "importer is off" not in str(e):  # the file's own fault: the same next time
-                fbx.save_sample(fbx.sample_path(path), str(e))
+                fbx.save_sample(where, str(e))
             raise
-    fbx.save_sample(fbx.sample_path(path), sample)
+    fbx.save_sample(where, sample)
     return sample
 
 

@@ -109,10 +109,6 @@ def sample_path(path: Path) -> Path:
     return cache_root() / SAMPLE_VERSION / f"{file_sha256(path).hex()[:32]}.npz"
 
 
-def cached_sample(path: Path) -> RigSample | str | None:
-    return load_sample(sample_path(path))
-
-
 def bpy_installed() -> bool:
     """Whether Blender's Python module can be imported here (by a worker process: this one never imports it)."""
     return importlib.util.find_spec("bpy") is not None

@@ -52,4 +52,4 @@ def test_build_library_reads_mixamo_like_fbx_at_true_size(scene, addon, own_cach
         about = np.linalg.norm((got - got[:, :1]) - (want - want[:, :1]), axis=-1).max()
         assert about < TOLERANCE_M, (name, about)
     # Each file's sample is cached by its content, as the command line's workers cache theirs.
-    assert all(isinstance(fbx.cached_sample(f), fbx.RigSample) for f in folder.iterdir())
+    assert all(isinstance(fbx.load_sample(fbx.sample_path(f)), fbx.RigSample) for f in folder.iterdir())
