@@ -11,7 +11,8 @@ takes, and each pair of takes alone (the take-to-take spread). Only `DanceReques
 
     python scripts/compare_revision.py REV [--takes 8] [--engines dancenet library] [--out DIR] [--data DIR]
 
-Writes `comparison_<REV>.json` in `--out` (default out/compare_revision) and prints each row's columns.
+Writes `comparison_<REV>.json` in `--out` (default out/compare_revision), with each side's dances
+(`<engine>_rev.npz`, `<engine>_this.npz`: `dance`'s arrays), and prints each row's columns.
 """
 
 from __future__ import annotations
@@ -102,7 +103,8 @@ def main() -> int:
                  "start_s": seqs[p.seq].music_offset_s, "end_s": seqs[p.seq].music_offset_s + len(p.motion) / fps}
                 for p in test for k in range(args.takes)]}))
             for name, root, tag in ((args.rev, tree, "rev"), ("this checkout", ROOT, "this")):
-                saved = Path(tmp) / f"{engine}_{tag}.npz"
+                args.out.mkdir(parents=True, exist_ok=True)
+                saved = args.out / f"{engine}_{tag}.npz"
                 print(f"{engine}: {name} dancing {len(test) * args.takes} dances", flush=True)
                 env = {**os.environ, "PYTHONPATH": str(root), "DANCENET_CACHE": str(Path(tmp) / f"cache_{tag}")}
                 subprocess.run([sys.executable, __file__, "--dance", str(jobs), str(saved)], env=env, check=True,
