@@ -22,7 +22,7 @@ def _use_extension_cache() -> None:
 
 _use_extension_cache()
 
-from . import menus, operators, panels, properties, warming  # noqa: E402
+from . import menus, operators, panels, preferences, properties, warming  # noqa: E402
 
 bl_info = {  # read by Blender only when installed as a legacy add-on
     "name": "DanceNet",
@@ -34,7 +34,7 @@ bl_info = {  # read by Blender only when installed as a legacy add-on
     "category": "Animation",
 }
 
-_CLASSES = (*properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
+_CLASSES = (*preferences.CLASSES, *properties.CLASSES, *operators.CLASSES, *panels.CLASSES, *menus.CLASSES)
 
 
 def _unregister_at_exit() -> None:
@@ -49,7 +49,7 @@ def register() -> None:
         bpy.utils.register_class(cls)
     properties.register()
     menus.register()
-    warming.start()
+    warming.start(commercial=preferences.commercial_only())  # read here: the warm-up's thread never touches bpy
     atexit.register(_unregister_at_exit)  # runs before bpy's own exit, registered when bpy was imported
 
 

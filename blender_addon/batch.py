@@ -44,7 +44,7 @@ def _addon() -> SimpleNamespace:
         package = importlib.util.module_from_spec(spec)
         sys.modules[here.name] = package
         spec.loader.exec_module(package)
-    modules = ("pipeline", "song", "export", "render", "takes")
+    modules = ("pipeline", "preferences", "song", "export", "render", "takes")
     return SimpleNamespace(**{m: importlib.import_module(f"{here.name}.{m}") for m in modules})
 
 
@@ -84,9 +84,12 @@ class BlenderTask:
     generator: Callable[..., Any] | None
 
     def settings(self, song: CatalogSong) -> dict[str, Any]:
+        """The command line's settings, the song list's for this song over them, and Commercial Use over both
+        where the add-on's preference asks for it (Commercial Use only)."""
         from dancenet_core.request import options_from
 
-        return {**options_from(self.args), **song.settings}
+        settings = {**options_from(self.args), **song.settings}
+        return settings | {"commercial": True} if self.addon.preferences.commercial_only() else settings
 
     def outputs_key(self) -> dict[str, Any]:
         return {"blend": True, "fbx": self.args.fbx, "bvh": self.args.bvh, "render": self.args.render,

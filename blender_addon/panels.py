@@ -11,7 +11,7 @@ from dancenet_core.request import panel_options
 from dancenet_core.rigmap import REQUIRED_JOINTS
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import library, operators, properties, rigchoice, takes
+from . import library, operators, preferences, properties, rigchoice, takes
 from .menus import DANCENET_MT_presets
 
 
@@ -78,6 +78,18 @@ def _draw_commercial(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup)
         layout.label(text="Commercial Use dances with the Motion Library engine", icon="ERROR")
     elif props.library_source == "FOLDER" and library.chosen_folder(props) is None:
         layout.label(text="Commercial Use needs a library of your own clips", icon="ERROR")
+
+
+def _draw_commercial_switch(layout: bpy.types.UILayout, props: bpy.types.PropertyGroup, label: str) -> None:
+    """The scene's Commercial Use switch; where the add-on's preference sets it for every scene, the switch is
+    shown on and greyed (the preference's own value), with a line saying where it is set."""
+    if not preferences.commercial_only():
+        layout.prop(props, "commercial")
+        return
+    row = layout.row()
+    row.enabled = False
+    row.prop(preferences.addon_preferences(), "commercial_only", text=label)
+    layout.label(text="Set for every scene in Preferences > Add-ons > DanceNet", icon="LOCKED")
 
 
 def _draw_frame_rate(layout: bpy.types.UILayout, render: bpy.types.RenderSettings) -> None:
@@ -172,7 +184,7 @@ class _Dance(_SubPanel):
         col.prop(props, "style")
         if properties.styles_problem():
             col.label(text=properties.styles_problem(), icon="ERROR")
-        for name, _default, _option in panel_options():  # the request's settings, in its order
+        for name, _default, option in panel_options():  # the request's settings, in its order
             if name == "library" and props.engine != "library":  # a library folder means nothing to DanceNet
                 continue
             if name == "library":
@@ -181,8 +193,11 @@ class _Dance(_SubPanel):
                     col.prop(props, name)
                 _draw_library_build(col, props)
                 continue
+            if name == "commercial":
+                _draw_commercial_switch(col, props, option.label)
+                continue
             col.prop(props, name)
-        if props.commercial:
+        if preferences.commercial(props):
             _draw_commercial(col, props)
         col.prop(props, "add_markers")
         _draw_frame_rate(col, context.scene.render)

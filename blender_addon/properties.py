@@ -21,7 +21,7 @@ from dancenet_core.errors import first_line
 from dancenet_core.request import ENERGY_SCALES, RETURN_CHOICES, Option, panel_options
 from dancenet_core.skeleton import JOINT_NAMES
 
-from . import library, operators, pipeline, takes
+from . import library, operators, pipeline, preferences, takes
 from .panelsettings import AS_DANCE
 
 # Blender keeps only pointers to dynamic enum strings: the list must outlive the callback.
@@ -42,18 +42,22 @@ def _style_label(style: str) -> str:
 
 def _engine_styles(props: DanceNetSettings, context: bpy.types.Context | None) -> list[tuple[str, str, str, int]]:
     """Auto and the styles the chosen engine dances (the library's: its clips'), with the analysed song's
-    probabilities in their labels."""
+    probabilities in their labels. In Commercial Use only a library of the user's own is read for them: DanceNet's
+    weights and the shipped library are parts it never opens (Generate Dance says why)."""
     analysis = props.analysis_for(props.current_song(context.scene)) if context is not None else None
     probs: dict[str, float] = analysis["probabilities"] if analysis else {}
     auto = "Auto"
     if analysis:
         auto = f"Auto ({_style_label(analysis['style'])})"
-    items = [("auto", auto, "Let the style classifier pick the style from the music", 0)]
+    commercial = preferences.commercial(props)
+    items = [("auto", auto, "The style whose dance-sport tempo and meter fit the music's" if commercial
+              else "Let the style classifier pick the style from the music", 0)]
     try:
         if props.engine == "library":  # the styles of the library's clips
-            styles = library.library_styles(library.chosen_library(props, drawn=True))
+            own = library.chosen_library(props, drawn=True)
+            styles = [] if commercial and own is None else library.library_styles(own)
         else:
-            styles = pipeline.available_styles()
+            styles = [] if commercial else pipeline.available_styles()
         _styles_problem[:] = []
     except ImportError as e:  # a broken install: said under the menu (styles_problem), not an empty menu
         styles = []

@@ -1,5 +1,6 @@
 """The add-on's warm-up thread (the first Generate Dance's imports and weights, and the numba kernels, compiled
-by a process of its own meanwhile: dancenet_core/warmup.py) and the lock a Generate Dance shares with it.
+by a process of its own meanwhile: dancenet_core/warmup.py; with the preference Commercial Use only, what the
+commercial mode runs alone) and the lock a Generate Dance shares with it.
 
 Why a lock: numba's first compile of a kernel and the loading of madmom's compiled networks are not safe to run
 on two threads at once. Each warm-up step and each generation hold `LOCK`, so a click during the warm-up waits
@@ -18,7 +19,7 @@ _stop = threading.Event()
 _thread: threading.Thread | None = None
 
 
-def _warm_up(stop: threading.Event) -> None:
+def _warm_up(stop: threading.Event, commercial: bool) -> None:
     """Never touches bpy, so disabling the add-on meanwhile only stops it early. Not a daemon thread: one frozen
     mid-import or mid-compile when Python shuts down can hang the shutdown, so Python waits for it instead, and
     the thread stops after its current step once the main thread has ended (bpy as a Python module: the script
@@ -30,7 +31,7 @@ def _warm_up(stop: threading.Event) -> None:
     try:
         from dancenet_core.warmup import warm_up
 
-        warm_up(cancelled, LOCK)
+        warm_up(cancelled, LOCK, commercial=commercial)
     except Exception as e:  # a failed warm-up costs only speed; a Generate Dance reports the fault itself
         if not cancelled():  # an import cut short by Python's shutdown is no fault
             print(f"DanceNet: warm-up stopped: {e}")
@@ -48,16 +49,18 @@ def generating() -> Iterator[None]:
         yield
 
 
-def start() -> None:
-    """Warm up on a thread of its own (each registration has its own stop signal). The kernels are deferred
-    first (dancenet_core.jit): until the warm-up has them compiled, a click waits for the music analysis' kernels
-    from its compiling process and runs the others' numpy twins (dancenet_core/warmup.py)."""
+def start(commercial: bool) -> None:
+    """Warm up on a thread of its own (each registration has its own stop signal); `commercial` (the add-on's
+    preference Commercial Use only): only what a dance in Commercial Use runs, nothing with a non-commercial
+    licence opened. The kernels are deferred first (dancenet_core.jit): until the warm-up has them compiled, a
+    click waits for the music analysis' kernels from its compiling process and runs the others' numpy twins
+    (dancenet_core/warmup.py)."""
     global _stop, _thread
     from dancenet_core import jit
 
     jit.defer()
     _stop = threading.Event()
-    _thread = threading.Thread(target=_warm_up, args=(_stop,), name="dancenet-warm-up")
+    _thread = threading.Thread(target=_warm_up, args=(_stop, commercial), name="dancenet-warm-up")
     _thread.start()
 
 

@@ -4,7 +4,7 @@ parts a run used and their terms, so that a studio can tell a dance it may use f
 The commercial mode (`DanceRequest.commercial`) runs only the parts marked `commercial`: this project's code,
 the weight-free music analysis (`music.weightfree`) and the library engine on the user's own clips, its style the
 user's or read from the song's tempo and meter (`engines.styles.style_by_tempo`). `NON_COMMERCIAL_FILES` names the
-files it never opens (tests/test_commercial_files.py records every file a commercial run opens against them).
+files it never opens (tests/test_commercial.py records every file a commercial run opens against them).
 docs/licence.md has the table and what was searched for a library that may be shipped for commercial use.
 """
 

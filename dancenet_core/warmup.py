@@ -16,7 +16,14 @@ measurements behind these choices: docs/experiments.md, "The first click on a Ri
 
 The kernels are compiled by running the real code on a few seconds of noise and a few frames of silence, so
 they get the argument types a real run gives them; nothing is written to the music cache. The heavy modules
-are imported inside the steps, so that the compiling process starts before this one imports them."""
+are imported inside the steps, so that the compiling process starts before this one imports them.
+
+In the commercial mode (the add-on's preference Commercial Use only) none of that runs: the weights and the
+style classifier are trained on Dance with Melody, the default analysis runs madmom's networks (CC BY-NC-SA
+model files), and the compiling process's sampler step loads the weights. What a dance in that mode runs has no
+kernel (the weight-free analysis and the library engine are numpy and scipy; the networks' loop and the beat
+decode open no model file but only the default analysis runs them), so nothing is compiled: the generator's
+imports are loaded and the weight-free analysis is run on the noise (`_weightfree`)."""
 
 from __future__ import annotations
 
@@ -38,6 +45,11 @@ WARM_AUDIO_S = 3  # one block of the analysis: both networks, chroma and the bea
 WARM_FRAMES = 8  # the sampler's kernel is the same for any length
 
 
+def _noise(sample_rate: int) -> np.ndarray:
+    """`WARM_AUDIO_S` of quiet noise, the song the analyses warm up on."""
+    return (0.1 * np.random.default_rng(0).standard_normal(WARM_AUDIO_S * sample_rate)).astype(np.float32)
+
+
 def _analysis() -> None:
     """The analysis' imports, madmom's networks, the onset and beat networks' loop, the downbeat tracker's
     decode, chroma and mel."""
@@ -46,8 +58,7 @@ def _analysis() -> None:
     from .music.audio import MADMOM_SAMPLE_RATE, Audio
     from .music.features import analyze_audio
 
-    noise = 0.1 * np.random.default_rng(0).standard_normal(WARM_AUDIO_S * MADMOM_SAMPLE_RATE)
-    analyze_audio(Audio(noise.astype(np.float32), MADMOM_SAMPLE_RATE, MADMOM_SAMPLE_RATE, 1, Path("warm-up")),
+    analyze_audio(Audio(_noise(MADMOM_SAMPLE_RATE), MADMOM_SAMPLE_RATE, MADMOM_SAMPLE_RATE, 1, Path("warm-up")),
                   workers=1)
 
 
@@ -65,6 +76,22 @@ def _dance() -> None:
     first = bundle.normalizer.normalize(bundle.start_frames[bundle.styles[0]][:1])
     takes = sample_dance(bundle, cond, first, Sampling(DEFAULT_TEMPERATURE, np.random.default_rng(0)))
     clean_feet(bundle, takes[0])
+
+
+def _weightfree() -> None:
+    """What a Generate Dance in the commercial mode loads first: the generator, the library engine and the
+    weight-free analysis (licence.NON_COMMERCIAL_FILES: none of them is opened)."""
+    import importlib
+    from pathlib import Path
+
+    from .engines import get_engine
+    from .music.audio import MADMOM_SAMPLE_RATE, Audio
+    from .music.weightfree import analyze_audio_weightfree
+
+    importlib.import_module(f"{__package__}.generate")
+    get_engine("library")
+    analyze_audio_weightfree(Audio(_noise(MADMOM_SAMPLE_RATE), MADMOM_SAMPLE_RATE, MADMOM_SAMPLE_RATE, 1,
+                                   Path("warm-up")))
 
 
 def _kernels() -> dict[str, tuple[Callable[[], None], tuple[Any, ...]]]:
@@ -209,12 +236,19 @@ def _finished(compiling: _Compiling, cancelled: Callable[[], bool]) -> bool:
         return False
 
 
-def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContextManager | None = None) -> None:
+def warm_up(cancelled: Callable[[], bool] = lambda: False, lock: AbstractContextManager | None = None, *,
+            commercial: bool = False) -> None:
     """Load or compile what a Generate Dance needs, checking `cancelled` between steps (a compile cannot be
     stopped midway, so each kernel is a step of its own), each step holding `lock`: a caller that runs real
     generations on other threads holds the same lock around them, so the two never race. With the kernels
-    deferred, another process compiles them meanwhile (see above)."""
+    deferred, another process compiles them meanwhile (see above). `commercial`: what a dance in the commercial
+    mode needs, and nothing with a non-commercial licence (see above)."""
     held = lock or contextlib.nullcontext()
+    if commercial:
+        if not cancelled():
+            with held:
+                _weightfree()
+        return
     child = _compile_elsewhere() if not (jit.may_compile() or _all_loaded()) else None
     if child is not None:
         try:

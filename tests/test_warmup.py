@@ -3,6 +3,7 @@ with the types a real run gives them: a Generate Dance after it compiles nothing
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -71,6 +72,44 @@ def test_deferred_kernels_are_compiled_apart(tmp_path: Path) -> None:
     assert "TWINS [0, 0, 0, 0]" in out
     assert "WARM [1, 1, 1, 1] [False, False, False, True]" in out
     assert len(list((tmp_path / "numba").rglob("*.nbi"))) == 4
+
+COMMERCIAL = """
+import json, os, sys
+opened, started = [], []
+
+
+def record(event, args):
+    if event == "open" and isinstance(args[0], str | bytes):
+        opened.append(os.path.abspath(os.fsdecode(args[0])).replace(os.sep, "/"))
+    elif event == "subprocess.Popen":
+        started.append(args[1])
+
+
+sys.addaudithook(record)
+from dancenet_core import jit
+from dancenet_core.engines.styles import load_style_model
+from dancenet_core.licence import NON_COMMERCIAL_FILES
+from dancenet_core.warmup import warm_up
+
+jit.defer()  # as in the add-on, where the default mode starts its compiling process
+warm_up(commercial=True)
+warm = {"opened": len(opened), "bad": [p for p in opened if any(f in p for f in NON_COMMERCIAL_FILES)],
+        "started": started, "madmom": any(m.startswith("madmom") for m in sys.modules)}
+load_style_model()
+warm["control"] = [p for p in opened[warm["opened"]:] if any(f in p for f in NON_COMMERCIAL_FILES)]
+print("RESULT", json.dumps(warm))
+"""
+
+
+def test_the_commercial_warm_up_opens_no_non_commercial_file() -> None:
+    """In a fresh process, every file opened recorded (an audit hook) from before the core is imported: no weights,
+    madmom model or training data file (licence.NON_COMMERCIAL_FILES), no compiling process, no madmom; the
+    recorder's control, the style classifier loaded after it, is seen."""
+    out = subprocess.run([sys.executable, "-c", COMMERCIAL], cwd=ROOT, capture_output=True, text=True,
+                         check=True).stdout  # fmt: skip
+    warm = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
+    assert warm["opened"] and warm["bad"] == [] and warm["started"] == [] and not warm["madmom"]
+    assert [Path(p).name for p in warm["control"]] == ["style_classifier.npz"]
 
 
 def test_a_warm_up_after_a_warm_up_starts_no_compiling_process(monkeypatch) -> None:
