@@ -32,16 +32,21 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from ..bvh import read_bvh
 from ..csvtable import read_rows
 from ..environment import default_workers, end_with_parent, stop_pool
 from ..errors import DanceNetError, GenerationCancelled, first_line
-from ..jointmap import armature_pose, rotation_motion
+from ..jointmap import armature_pose, character_frame, rotation_motion, up_rotation
+from ..kinematics import fk_numpy
 from ..motion import Motion
 from ..progress import StageProgress
-from ..rigmap import BoneMap, auto_map, load_file
+from ..rigmap import BoneMap, auto_map, load_file, load_shipped
 from ..rigmap.humanoid import mapped_humanoid
 from ..shaping.floor import floor_track
+from ..shaping.rootmotion import dance_joints, dance_motion
+from ..skeleton import JOINT_INDEX
 from . import fbx
 from .analysis import ClipAnalysis, analyze_clip
 from .bvhclip import bvh_rig
@@ -58,10 +63,33 @@ def read_clip(path: Path, bone_map: BoneMap | None = None) -> Motion:
 
 
 def _bvh_clip(path: Path, bone_map: BoneMap | None) -> tuple[Motion, str]:
-    """`read_clip`, and the convention its skeleton was read in (the bone map that read it)."""
-    rig = bvh_rig(path, bone_map)
+    """`read_clip`, and the convention its skeleton was read in (the bone map that read it). A clip of our own 55
+    joints (`dancenet generate`'s BVH, the Dance with Melody dances) whose rest pose stands Y up and faces +Z, as
+    ours does, is read as written, on its own bones: read as a rig's, onto our T-pose's bone directions, the Dance
+    with Melody dancers' collars and shoulders turned 2 degrees and moved 5 mm."""
+    data = read_bvh(path)
+    joints = dance_joints(data) if bone_map is None else None
+    if joints is not None:
+        motion = dance_motion(data, joints, path.name)
+        rest = motion.skeleton.rest_positions()
+        if np.allclose(character_frame(*rest[[JOINT_INDEX[n] for n in ("left_hip", "right_hip", "pelvis", "neck")]]),
+                       np.eye(3), atol=1e-3):  # its rest stands and faces as ours: its rotations are ours
+            return _as_clip(_upright(motion), path.name), load_shipped("SMPLX").name
+    rig = bvh_rig(path, bone_map, data)
     motion = rotation_motion(armature_pose(rig.joints, rig.rest, rig.pose, rig.fps, path.name))
     return _as_clip(motion, path.name), rig.convention
+
+
+def _upright(motion: Motion) -> Motion:
+    """The motion turned so that its up axis (head above pelvis) is +Y."""
+    pos = fk_numpy(motion.skeleton, motion.rotations[::10], motion.root_positions[::10])[0]
+    turn = up_rotation(pos, JOINT_INDEX["pelvis"], JOINT_INDEX["head"])
+    if np.allclose(turn.as_matrix(), np.eye(3)):
+        return motion
+    rot = motion.rotations.copy()
+    rot[:, 0] = (turn * Rotation.from_rotvec(rot[:, 0])).as_rotvec()
+    root = turn.apply(motion.root_positions + motion.skeleton.offsets[0]) - motion.skeleton.offsets[0]
+    return Motion(rot, root, motion.fps, motion.skeleton)
 
 
 def _as_clip(motion: Motion, name: str) -> Motion:

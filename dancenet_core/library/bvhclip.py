@@ -44,10 +44,10 @@ class BvhRig(NamedTuple):
     convention: str
 
 
-def bvh_rig(path: Path, bone_map: BoneMap | None = None) -> BvhRig:
-    """The clip in `path` as a rig's clip (`BvhRig`); a one-line DanceNetError for a skeleton that is no
-    humanoid's or a file that is no BVH."""
-    data = read_bvh(path)
+def bvh_rig(path: Path, bone_map: BoneMap | None = None, data: BvhData | None = None) -> BvhRig:
+    """The clip in `path` (`data`: the file already read) as a rig's clip (`BvhRig`); a one-line DanceNetError for
+    a skeleton that is no humanoid's or a file that is no BVH."""
+    data = read_bvh(path) if data is None else data
     heads, tails = rest_bones(data)
     convention, mapped = _mapped(data, heads, tails, path.name, bone_map)
     joints = sorted(mapped)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..bvh import _write, read_bvh
+from ..bvh import BvhData, _write, read_bvh
 from ..constants import ROOT_MODES
 from ..errors import DanceNetError
 from ..motion import Motion
@@ -94,22 +94,39 @@ def read_dance_bvh(path: str | Path) -> Motion:
     """A DanceNet dance from a BVH, travelling, in place or with a root bone (folded back into the hips),
     in our joint order; a one-line error for any other skeleton."""
     data = read_bvh(path)
-    body = data.names[1:] if data.names[:2] == (ROOT_BONE, "pelvis") else data.names
-    index = {n: i for i, n in enumerate(data.names)}
-    perm = [index.get(n, -1) for n in JOINT_NAMES]
-    if sorted(body) != sorted(JOINT_NAMES) or any(data.parents[perm[j]] != perm[p] for j, p in
-                                                  enumerate(PARENTS) if p >= 0):
+    joints = dance_joints(data)
+    if joints is None:
         raise DanceNetError(f"{Path(path).name} is not a DanceNet dance (its joints are not the 55 of "
                             "`dancenet generate`'s BVH)")
-    metres = _metres_per_unit(Path(path).name, data.offsets[perm[1:]])
-    world_p, world_r = data._fk()
-    root = world_p[:, perm[0]] * metres
+    motion = dance_motion(data, joints, Path(path).name)
+    root = motion.root_positions
     if not np.abs(root - root[0]).max() <= MAX_TRAVEL_M:
         raise DanceNetError(f"{Path(path).name}: its hips go more than {MAX_TRAVEL_M:g} m from where they start; "
                             "that is not a dance (export it again)")
-    rotations = data.local_rotations()[:, perm]
-    rotations[:, 0] = Rotation.from_matrix(world_r[:, perm[0]]).as_rotvec()
-    offsets = data.offsets[perm] * metres
+    return motion
+
+
+def dance_joints(data: BvhData) -> list[int] | None:
+    """The file's joint for each of our 55, in our order, when its skeleton is `dancenet generate`'s (our names and
+    parents, with or without a root bone); None for any other skeleton."""
+    body = data.names[1:] if data.names[:2] == (ROOT_BONE, "pelvis") else data.names
+    index = {n: i for i, n in enumerate(data.names)}
+    joints = [index.get(n, -1) for n in JOINT_NAMES]
+    if sorted(body) != sorted(JOINT_NAMES) or any(data.parents[joints[j]] != joints[p] for j, p in
+                                                  enumerate(PARENTS) if p >= 0):
+        return None
+    return joints
+
+
+def dance_motion(data: BvhData, joints: list[int], name: str) -> Motion:
+    """The motion of a BVH of our skeleton (`joints` from `dance_joints`) as written: its rotations, on its own
+    bones, in the unit that makes it our dancer's size; a root bone folded back into the hips."""
+    metres = _metres_per_unit(name, data.offsets[joints[1:]])
+    world_p, world_r = data._fk()
+    root = world_p[:, joints[0]] * metres
+    rotations = data.local_rotations()[:, joints]
+    rotations[:, 0] = Rotation.from_matrix(world_r[:, joints[0]]).as_rotvec()
+    offsets = data.offsets[joints] * metres
     offsets[0] = 0.0
     skeleton = DEFAULT_SKELETON if np.allclose(offsets, DEFAULT_SKELETON.offsets, rtol=0.0, atol=1e-5) else \
         Skeleton(offsets, JOINT_NAMES, PARENTS, DEFAULT_SKELETON.end_sites)

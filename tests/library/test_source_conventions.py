@@ -20,7 +20,7 @@ from dancenet_core.errors import DanceNetError
 from dancenet_core.library.build import build_library, read_clip
 from dancenet_core.library.bvhclip import bvh_rig
 from dancenet_core.motion import Motion
-from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, JOINT_NAMES
+from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, JOINT_NAMES, Skeleton
 
 FPS = 30.0
 
@@ -174,20 +174,33 @@ def test_a_manifest_names_a_bone_map_for_bones_auto_cannot_find(tmp_path: Path,
         build_library(folder, force=True)
 
 
-def test_our_own_clips_read_exactly(tmp_path: Path) -> None:
-    """Our BVH (`dancenet generate`'s) goes through the same mapper: every joint where it was written, turned as
-    written (but the eyes, whose BVH bone runs from the head, where ours look ahead: the same place, turned)."""
+def _collars_apart() -> Skeleton:
+    """Our skeleton with the collars and shoulders set as the Dance with Melody dancers' are (5 mm further out and
+    lower than ours, pointing 2 degrees apart): bones whose directions are not our T-pose's."""
+    offsets = DEFAULT_SKELETON.offsets.copy()
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        offsets[JOINT_INDEX[f"{side}_collar"]] = (0.0551 * sign, 0.0828, -0.0069)
+        offsets[JOINT_INDEX[f"{side}_shoulder"]] = (0.0866 * sign, 0.0207, -0.0069)
+    return Skeleton(offsets, JOINT_NAMES, DEFAULT_SKELETON.parents, DEFAULT_SKELETON.end_sites)
+
+
+@pytest.mark.parametrize("skeleton", [DEFAULT_SKELETON, _collars_apart()], ids=["ours", "collars_apart"])
+def test_our_own_clips_read_exactly(tmp_path: Path, skeleton: Skeleton) -> None:
+    """Our BVH (`dancenet generate`'s, the Dance with Melody dances) is read as written, on its own bones: every
+    joint where it was written, turned as written, whatever its bones' directions (read as a rig's, onto our
+    T-pose, the collars of the Dance with Melody dancers turned 2 degrees and moved 5 mm)."""
     motion = dance()
+    motion = Motion(motion.rotations, motion.root_positions, motion.fps, skeleton)
     write_bvh(tmp_path / "ours.bvh", motion)
     got = read_clip(tmp_path / "ours.bvh")
     want = motion.resampled(25.0)
+    np.testing.assert_allclose(got.skeleton.offsets[1:], skeleton.offsets[1:], atol=1e-6)
     pos, ref = got.positions(), want.positions()
-    rel = np.abs((pos - pos[:, :1]) - (ref - ref[:, :1])).max()
-    assert rel < 1e-5
-    kept = [j for j in range(1, DEFAULT_SKELETON.num_joints) if "eye" not in JOINT_NAMES[j]]
-    turn = Rotation.from_rotvec(got.rotations[:, kept].reshape(-1, 3)).inv() * Rotation.from_rotvec(
-        want.rotations[:, kept].reshape(-1, 3))
+    assert np.abs((pos - pos[:, :1]) - (ref - ref[:, :1])).max() < 1e-5
+    turn = Rotation.from_rotvec(got.rotations[:, 1:].reshape(-1, 3)).inv() * Rotation.from_rotvec(
+        want.rotations[:, 1:].reshape(-1, 3))
     assert np.degrees(turn.magnitude()).max() < 1e-3
+    assert bvh_rig(tmp_path / "ours.bvh").convention == "SMPL-X"
 
 
 def test_the_build_table_names_each_clips_convention_and_the_library_keeps_it(tmp_path: Path) -> None:
