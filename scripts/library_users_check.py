@@ -5,7 +5,7 @@ over all its dances, the figures issue 45's "done when" asks for:
 
 - `speed`: the dance's hands (wrists), feet and pelvis mean speed over the library clips' own (the same joints,
   every frame of every clip), both in body heights per second: 0.85-1.2 wanted;
-- `floor`: the share of 2-s windows in which the body's lowest point (every joint and end site) comes within 5 cm
+- `floor`: the share of 2-s windows in which the body's lowest point (`floor.lowest_point`) comes within 5 cm
   of the floor (y = 0): 0.9 or more;
 - `fastest`: the largest joint speed of the dance over that joint's 99.9th percentile in the clips: 1.5 at most;
 - `bars_per_figure`: how long the dance stays with one clip between cuts, in the song's bars: 1 or more;
@@ -47,6 +47,7 @@ from dancenet_core.evaluation.metrics import own_song_bas_ratio  # noqa: E402
 from dancenet_core.kinematics import fk_numpy  # noqa: E402
 from dancenet_core.library.choreography import clip_usage  # noqa: E402
 from dancenet_core.motion import Motion  # noqa: E402
+from dancenet_core.shaping.floor import lowest_point  # noqa: E402
 from dancenet_core.skeleton import BODY_JOINTS, JOINT_INDEX  # noqa: E402
 
 PARTS = {"hands": ["left_wrist", "right_wrist"], "feet": ["left_foot", "right_foot"], "pelvis": ["pelvis"]}
@@ -82,9 +83,8 @@ def clip_stats(library) -> dict:
 
 
 def floor_share(motion: Motion) -> float:
-    """Share of 2-s windows whose lowest body point (joints and end sites) comes within 5 cm of y = 0."""
-    pos, _, ends = fk_numpy(motion.skeleton, motion.rotations, motion.root_positions, with_end_sites=True)
-    low = np.concatenate([pos, ends], axis=1)[..., 1].min(axis=1)
+    """Share of 2-s windows whose lowest body point (`floor.lowest_point`) comes within 5 cm of y = 0."""
+    low = lowest_point(motion)
     n = int(round(FLOOR_WINDOW_S * motion.fps))
     k = max(1, len(low) // n)
     windows = low[: k * n].reshape(k, -1) if len(low) >= n else low[None]

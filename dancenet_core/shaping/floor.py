@@ -20,10 +20,12 @@ def floor_offset(motion: Motion) -> float:
 
 
 def lowest_point(motion: Motion) -> np.ndarray:
-    """The height [T] of the body's lowest point, every joint and end site: a toe when the dancer stands, a hand,
-    a knee, the back or the head in floor work."""
+    """The height [T] of the body's lowest point, its body joints and end sites: a toe when the dancer stands, a
+    hand, a knee, the back or the head in floor work. The finger joints are left out: a hand on the floor is its
+    palm (the hand's end site), and captures track fingers poorly (the Dance with Melody rumbas' reach 2-7 cm under
+    the standing dancer's toes)."""
     pos, _, ends = fk_numpy(motion.skeleton, motion.rotations, motion.root_positions, with_end_sites=True)
-    return np.minimum(pos[..., 1].min(axis=1), ends[..., 1].min(axis=1))
+    return np.minimum(pos[:, :BODY_JOINTS, 1].min(axis=1), ends[..., 1].min(axis=1))
 
 
 def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5, body: bool = False) -> np.ndarray:

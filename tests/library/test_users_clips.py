@@ -112,7 +112,7 @@ def test_floor_work_stays_on_the_floor(tmp_path: Path, monkeypatch: pytest.Monke
     toes = clip.end_effectors()[:, list(TOE_ENDS), 1].min(axis=1)
     upside_down = slice(int(0.75 * clip.num_frames) + 1, None)
     assert (lowest_point(clip)[upside_down] < toes[upside_down] - 1.0).all()
-    assert floor_track(clip)[upside_down].mean() > 1.0  # by the toes, the floor would be up at the feet
+    assert floor_track(clip)[upside_down].mean() > 0.8  # by the toes, the floor would be up at the feet
     assert np.abs(floor_track(clip, body=True)).max() < 0.03
     monkeypatch.setenv("DANCENET_CACHE", str(tmp_path / "cache"))
     folder = tmp_path / "clips"
