@@ -103,9 +103,10 @@ def sample_fbx(path: Path) -> RigSample:
             rig, frames = fbx_worker.animated_armature(scene)
             fbx_worker.only(rig, scene)
             sample = fbx_worker.sample_armature(rig, scene, frames, song.scene_fps(scene))
-        except DanceNetError as e:
-            if "importer is off" not in str(e):  # the file's own fault: the same next time
-                fbx.save_sample(where, str(e))
+        except fbx_worker.ImporterOff:  # this Blender's fault, not the file's: not kept
+            raise
+        except DanceNetError as e:  # the file's own fault: the same next time
+            fbx.save_sample(where, str(e))
             raise
     fbx.save_sample(where, sample)
     return sample
