@@ -80,7 +80,7 @@ def import_fbx(path: Path) -> None:
     """`path` imported into the context's scene by Blender's FBX importer (an ASCII file rewritten as binary
     first: the importer reads binary only); a one-line DanceNetError when it cannot be (`ImporterOff` when the
     importer is not enabled)."""
-    if not hasattr(bpy.ops.import_scene, "fbx"):
+    if not hasattr(bpy.types, "IMPORT_SCENE_OT_fbx"):  # bpy.ops answers any name: its registered class is the test
         raise ImporterOff("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
     with open(path, "rb") as f:
         head = f.read(1024)
