@@ -81,19 +81,6 @@ def humanoid_joints(rig: bpy.types.Object) -> dict[int, str]:
     return rigmap.humanoid_joints(bones, f"armature '{rig.name}'", auto)
 
 
-def _sample(rig: bpy.types.Object, scene: bpy.types.Scene, joints: dict[int, str], frames: range, name: str,
-            style: str, fps: float, bpm: float | None = None, meter: int | None = None) -> ArmatureClip:
-    """The world matrices of `rig`'s bones for our `joints` (in `scene`) at each of `frames`, as Blender evaluates
-    them (the core's sampling, `fbx_worker.sample_armature`: in metres)."""
-    from dancenet_core.library.build import ArmatureClip
-    from dancenet_core.library.fbx_worker import sample_armature
-
-    sample = sample_armature(rig, scene, frames, fps)
-    order = sorted(joints)
-    index = [sample.names.index(joints[j]) for j in order]
-    return ArmatureClip(name, style, order, sample.rest[index], sample.pose[:, index], fps, bpm, meter)
-
-
 def _frames(action: bpy.types.Action) -> range:
     first, last = action.frame_range
     return range(math.floor(first), math.ceil(last) + 1)
@@ -116,9 +103,10 @@ def sample_fbx(path: Path) -> RigSample:
             rig, frames = fbx_worker.animated_armature(scene)
             fbx_worker.only(rig, scene)
             sample = fbx_worker.sample_armature(rig, scene, frames, song.scene_fps(scene))
-        except DanceNetError as e:
-            if "importer is off" not in str(e):  # the file's own fault: the same next time
-                fbx.save_sample(where, str(e))
+        except fbx_worker.ImporterOff:  # this Blender's fault, not the file's: not kept
+            raise
+        except DanceNetError as e:  # the file's own fault: the same next time
+            fbx.save_sample(where, str(e))
             raise
     fbx.save_sample(where, sample)
     return sample
@@ -257,7 +245,11 @@ def actions_signature(actions: list[FileAction], fps: float) -> tuple:
 
 def sample_action(item: FileAction, fps: float) -> ArmatureClip:
     """The clip of a file action: played on a copy of its armature in a scene of its own (the armature, the action
-    and the user's scene untouched), at the file's frame rate `fps`."""
+    and the user's scene untouched), at the file's frame rate `fps`: its bones for our joints as Blender evaluates
+    them (the core's sampling, `fbx_worker.sample_armature`: in metres)."""
+    from dancenet_core.library.build import ArmatureClip
+    from dancenet_core.library.fbx_worker import sample_armature
+
     action, rig = bpy.data.actions.get(item.action), bpy.data.objects.get(item.armature)
     if action is None or rig is None:
         raise DanceNetError(f"it or its armature '{item.armature}' is gone")
@@ -272,5 +264,5 @@ def sample_action(item: FileAction, fps: float) -> ArmatureClip:
         anim.action = action
         if item.slot is not None:
             anim.action_slot = next(s for s in action.slots if s.identifier == item.slot)
-        return _sample(copy, scene, dict(item.joints), _frames(action), item.action, item.style, fps, item.bpm,
-                       item.meter)
+        sample = sample_armature(copy, scene, _frames(action), fps)
+        return ArmatureClip.from_sample(sample, dict(item.joints), item.action, item.style, item.bpm, item.meter)

@@ -26,8 +26,8 @@ from .errors import DanceNetError
 from .kinematics import fk_numpy
 from .motion import Motion
 from .rigmap import load_shipped
-from .shaping.rootmotion import UNITS
 from .skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, MIRROR_INDEX, EndSite, Skeleton
+from .units import DANCER_M, FILE_UNIT_NAMES, RIG_UNITS, dancer_unit
 
 
 class RetargetError(DanceNetError):
@@ -51,10 +51,6 @@ class JointMap:
 
 # CMU clips as AMASS writes them: the shipped CMU bone map (the 22 SMPL body joints under CMU's names).
 CMU = JointMap("CMU", {j: str(b) for j, b in load_shipped("CMU").bones.items()})
-
-# Metres per unit a rig's rest pose may come in: metres, centimetres, millimetres, inches, and a centimetre rig's
-# 0.01 scale applied twice.
-RIG_UNITS: tuple[float, ...] = (*(m for _, m in UNITS), 100.0)
 
 # Rotations that turn a world whose up axis is (axis, sign) into our Y-up world.
 _UP_TO_Y = {
@@ -385,13 +381,13 @@ def armature_pose(joints: list[int], rest: np.ndarray, pose: np.ndarray, fps: fl
 
 
 def rest_unit(heads: np.ndarray, joints: list[int], name: str) -> float:
-    """Metres per unit of a rig's rest pose (`heads` [K, 3] of our `joints`, Y up): the unit of `RIG_UNITS` that
-    makes it nearest our dancer's size, for a file in centimetres, millimetres or inches, or an FBX rig whose 0.01
-    scale was applied twice or not at all; a one-line RetargetError when none makes it a dancer's 0.5-2.5 m."""
+    """Metres per unit of a rig's rest pose (`heads` [K, 3] of our `joints`, Y up): the one of `units.RIG_UNITS`
+    that makes it nearest our dancer's size, for a file in centimetres, millimetres or inches, or an FBX rig whose
+    0.01 scale was applied twice or not at all; a one-line RetargetError when none makes it a dancer's height."""
     height = float(np.ptp(heads[:, 1]))
     ours = float(np.ptp(DEFAULT_SKELETON.rest_positions()[joints, 1]))
-    metres = min(RIG_UNITS, key=lambda m: abs(np.log(max(height, 1e-12) * m / ours)))
-    if not 0.5 < height * metres < 2.5:
-        raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} units tall, which no unit (metres, "
-                            "centimetres, millimetres, inches) makes a dancer's 0.5-2.5 m")
+    metres = dancer_unit(height, ours, RIG_UNITS)
+    if not DANCER_M[0] < height * metres < DANCER_M[1]:
+        raise RetargetError(f"{name}: the rig's rest pose is {height:.3g} units tall, which no unit "
+                            f"({FILE_UNIT_NAMES}) makes a dancer's {DANCER_M[0]:g}-{DANCER_M[1]:g} m")
     return metres

@@ -117,6 +117,15 @@ class ArmatureClip:
     bpm: float | None = None  # the clip's tempo and beats per bar where the user gave them (else read from motion)
     meter: int | None = None
 
+    @classmethod
+    def from_sample(cls, sample: fbx.RigSample, joints: Mapping[int, str], name: str, style: str,
+                    bpm: float | None = None, meter: int | None = None) -> ArmatureClip:
+        """The clip of a rig Blender sampled (an FBX file's or an action of the add-on's file): the bones that
+        `joints` (our joint -> the rig's bone) name, in our joints' order, at the sample's frame rate."""
+        order = sorted(joints)
+        index = [sample.names.index(joints[j]) for j in order]
+        return cls(name, style, order, sample.rest[index], sample.pose[:, index], sample.fps, bpm, meter)
+
 
 def armature_motion(clip: ArmatureClip) -> Motion:
     """A rig's clip as a library clip, like a BVH's (`read_clip`): on a skeleton of the rig's bone lengths, at
@@ -274,10 +283,8 @@ def _fbx_clip(path: Path, sampled: fbx.RigSample | str | None, hint: ClipHints, 
     bones = sampled.rest_bones()
     bone_map = hint.bone_map or (auto_map(bones, path.name, saved_maps) if saved_maps is not None else None)
     convention, joints = mapped_humanoid(bones, path.name, bone_map)
-    order = sorted(joints)
-    index = [sampled.names.index(joints[j]) for j in order]
-    return armature_motion(ArmatureClip(path.name, hint.style, order, sampled.rest[index], sampled.pose[:, index],
-                                        sampled.fps, hint.bpm, hint.meter)), convention
+    clip = ArmatureClip.from_sample(sampled, joints, path.name, hint.style, hint.bpm, hint.meter)
+    return armature_motion(clip), convention
 
 
 def _saved(library: MotionLibrary, path: Path) -> MotionLibrary:

@@ -30,12 +30,10 @@ from ..atomic import atomic_path
 from ..environment import cache_root
 from ..errors import DanceNetError
 from ..rigmap import RestBone
+from ..units import DANCER_HEIGHT_M, DANCER_M, SAMPLED_UNITS, dancer_unit
 from .store import file_sha256
 
 SAMPLE_VERSION = "fbx-sample-1"  # change whenever what a sample holds changes
-DANCER_M = (0.5, 2.5)  # a rig whose rest pose is this tall is taken to be in metres already
-DANCER_HEIGHT_M = 1.7  # else the unit that makes it nearest this tall
-UNIT_GUESSES = (*(10.0**k for k in range(-4, 5)), 0.0254)  # what a rig read in another unit is multiplied by
 WORKER = "dancenet_core.library.fbx_worker"  # the module a worker process runs
 INSTALL_HINT = ("pip install 'dancenet[blender]' (Blender's Python module), or build the folder with Build Library "
                 "in Blender's DanceNet add-on")
@@ -68,7 +66,7 @@ class RigSample:
         tall = self.height()
         if DANCER_M[0] <= tall <= DANCER_M[1] or tall <= 0:
             return self
-        unit = min(UNIT_GUESSES, key=lambda u: abs(np.log(tall * u / DANCER_HEIGHT_M)))
+        unit = dancer_unit(tall, DANCER_HEIGHT_M, SAMPLED_UNITS)
         rest, pose = self.rest.copy(), self.pose.copy()
         rest[..., :3, 3] *= unit
         pose[..., :3, 3] *= unit

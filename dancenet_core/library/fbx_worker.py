@@ -72,11 +72,16 @@ def sample_armature(rig: bpy.types.Object, scene: bpy.types.Scene, frames: range
     return RigSample(names, parents, heads * unit, tails * unit, rest, pose, fps).in_metres()
 
 
+class ImporterOff(DanceNetError):
+    """Blender's FBX importer is not enabled: a fault of this Blender, not of the file, so no file's sample keeps it."""
+
+
 def import_fbx(path: Path) -> None:
     """`path` imported into the context's scene by Blender's FBX importer (an ASCII file rewritten as binary
-    first: the importer reads binary only); a one-line DanceNetError when it cannot be."""
-    if not hasattr(bpy.ops.import_scene, "fbx"):
-        raise DanceNetError("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
+    first: the importer reads binary only); a one-line DanceNetError when it cannot be (`ImporterOff` when the
+    importer is not enabled)."""
+    if not hasattr(bpy.types, "IMPORT_SCENE_OT_fbx"):  # bpy.ops answers any name: its registered class is the test
+        raise ImporterOff("Blender's FBX importer is off (Preferences > Add-ons > FBX format)")
     with open(path, "rb") as f:
         head = f.read(1024)
     with tempfile.TemporaryDirectory() as tmp:

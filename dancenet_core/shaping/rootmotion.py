@@ -20,12 +20,9 @@ from ..errors import DanceNetError
 from ..motion import Motion
 from ..representation import yaw_and_swing
 from ..skeleton import DEFAULT_SKELETON, JOINT_NAMES, PARENTS, EndSite, Skeleton
+from ..units import FILE_UNIT_NAMES, FILE_UNITS, dancer_unit
 
 ROOT_BONE = "root"
-# Units a dance's BVH may come in (ours and Blender's exporter write metres; other tools centimetres or inches),
-# told apart by the skeleton's size against our dancer's; metres per unit.
-UNITS: tuple[tuple[str, float], ...] = (("metres", 1.0), ("centimetres", 0.01), ("millimetres", 0.001),
-                                        ("inches", 0.0254))
 SIZE_RANGE = (0.5, 2.0)  # a dancer from half to twice ours, in the unit found
 MAX_TRAVEL_M = 1000.0  # no dance goes further from where it started: beyond this a file holds garbage, not a path
 
@@ -134,11 +131,11 @@ def dance_motion(data: BvhData, joints: list[int], name: str) -> Motion:
 
 
 def _metres_per_unit(name: str, bones: np.ndarray) -> float:
-    """The unit of a dance's BVH, from its bones [54, 3] against our dancer's: the one of `UNITS` that makes it
-    nearest our size, or a one-line error when no unit makes it a dancer's size."""
+    """The unit of a dance's BVH, from its bones [54, 3] against our dancer's: the file unit that makes it nearest
+    our size, or a one-line error when no unit makes it a dancer's size."""
     size = float(np.linalg.norm(bones, axis=-1).sum() / np.linalg.norm(DEFAULT_SKELETON.offsets, axis=-1).sum())
-    unit, metres = min(UNITS, key=lambda u: abs(np.log(size * u[1]))) if size > 0 else UNITS[0]
+    metres = dancer_unit(size, 1.0, FILE_UNITS.values())
     if not SIZE_RANGE[0] <= size * metres <= SIZE_RANGE[1]:
-        raise DanceNetError(f"{name}: its skeleton is {size:.3g} times our dancer's size, which no unit (metres, "
-                            "centimetres, millimetres, inches) makes a dancer's; export it again in one of them")
+        raise DanceNetError(f"{name}: its skeleton is {size:.3g} times our dancer's size, which no unit "
+                            f"({FILE_UNIT_NAMES}) makes a dancer's; export it again in one of them")
     return metres

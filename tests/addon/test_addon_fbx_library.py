@@ -1,18 +1,20 @@
 """Build Library in the add-on on a folder of FBX files written by Blender (tests/fbx_rigs.py): the Mixamo-like rig
 (centimetres under a 0.01 scale, skinned mesh) as binary and ASCII FBX, the same with its 0.01 on its own FBX node
 (which Blender imports at a hundredth of its size) and a Z-up generic rig read at their true size and as danced,
-the file left as it was; the samples are cached by content, shared with the command line."""
+the file left as it was; the samples are cached by content, shared with the command line. With Blender's FBX
+importer off, a file is not read and nothing is cached of it."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import addon_utils
 import numpy as np
 import pytest
 from fbx_rigs import SIZE, dance, sized, written
 from scene_helpers import bpy
 
-from dancenet_core.library import fbx
+from dancenet_core.library import fbx, fbx_worker
 from dancenet_core.library.store import MotionLibrary, library_path
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON
 
@@ -53,3 +55,16 @@ def test_build_library_reads_mixamo_like_fbx_at_true_size(scene, addon, own_cach
         assert about < TOLERANCE_M, (name, about)
     # Each file's sample is cached by its content, as the command line's workers cache theirs.
     assert all(isinstance(fbx.load_sample(fbx.sample_path(f)), fbx.RigSample) for f in folder.iterdir())
+
+
+def test_fbx_importer_off_is_said_and_not_cached(scene, addon, own_cache, tmp_path, tmp_path_factory):
+    path = tmp_path / "mixamo.fbx"
+    path.write_bytes((written(tmp_path_factory) / "mixamo.fbx").read_bytes())
+    addon_utils.disable("io_scene_fbx")
+    try:
+        with pytest.raises(fbx_worker.ImporterOff, match="^Blender's FBX importer is off"):
+            addon.rigclips.sample_fbx(path)
+    finally:
+        addon_utils.enable("io_scene_fbx")
+    assert fbx.load_sample(fbx.sample_path(path)) is None
+    assert isinstance(addon.rigclips.sample_fbx(path), fbx.RigSample)  # read once the importer is on again
