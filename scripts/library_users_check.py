@@ -16,12 +16,15 @@ over all its dances, the figures issue 45's "done when" asks for:
 
     OMP_NUM_THREADS=1 .venv/bin/python scripts/library_users_check.py [--folder FOLDER] [--takes 2]
         [--seconds 60] [--songs DIR] [--no-default] [--no-folder] [--returns anew] [--set NAME=VALUE ...] [--commercial]
+        [--shipped FILE]
 
 `--folder` is a folder of clips (built first as `dancenet library build` builds it); without it, the CMU BVH clips
 of the data folder (`$DANCENET_DATA/cmu_dance`) laid flat in a temporary folder, so that no clip names a style:
 a user's folder of downloads. `--set` changes a plan setting (`library.choreography.Settings`) for choosing them on
 songs that are not the evaluation's. `--commercial` dances in the commercial mode (`DanceRequest.commercial`: the
-weight-free music analysis, no learned match), on the folder only.
+weight-free music analysis, no learned match), on the folder only. `--shipped` dances another file in the shipped
+library's place (a built library's .npz, given to the engine as `--library FILE`): the library a rebuild replaces,
+measured in the same session as the rebuilt one.
 """
 
 from __future__ import annotations
@@ -165,7 +168,7 @@ def check(name: str, library, folder: Path | None, song_files: list[Path], takes
 def main() -> int:
     from dancenet_core.library.build import build_library
     from dancenet_core.library.choreography import DEFAULT_SETTINGS
-    from dancenet_core.library.store import load_default
+    from dancenet_core.library.store import MotionLibrary, load_default
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--folder", type=Path, default=None, help="a folder of clips (default: CMU's, flat)")
@@ -178,6 +181,8 @@ def main() -> int:
     parser.add_argument("--returns", default="repeat", help="returning sections: repeat (the default), mirror, anew")
     parser.add_argument("--commercial", action="store_true",
                         help="the commercial mode (weight-free analysis, no learned match; the folder only)")
+    parser.add_argument("--shipped", type=Path, default=None,
+                        help="a built library's .npz danced in the shipped library's place (default: the shipped one)")
     args = parser.parse_args()
     changed = {k: float(v) for k, v in (item.split("=", 1) for item in args.set)}
     settings = dataclasses.replace(DEFAULT_SETTINGS, **changed)
@@ -186,8 +191,9 @@ def main() -> int:
         tmp = Path(t)
         song_files = songs(args.songs, args.seconds, tmp)
         if not args.no_default and not args.commercial:  # the shipped library is not the commercial mode's
-            summaries.append(check("shipped CMU", load_default(), None, song_files, args.takes, args.seconds,
-                                   settings, args.returns))
+            shipped = load_default() if args.shipped is None else MotionLibrary.load(args.shipped)
+            summaries.append(check(str(args.shipped or "shipped CMU"), shipped, args.shipped, song_files, args.takes,
+                                   args.seconds, settings, args.returns))
         if not args.no_folder:
             folder = args.folder or users_folder(tmp)
             library, _ = build_library(folder, report=lambda _line: None)
