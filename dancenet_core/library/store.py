@@ -24,7 +24,7 @@ from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis, with_assumed_tempi
 from .loops import danced_around
 
-LIBRARY_VERSION = "motion-library-6"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-7"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
