@@ -109,6 +109,9 @@ class Settings:
     # at the library's mean), and on the Dance with Melody folds it doubled FID_g (docs/experiments.md).
     energy_shift: float = 0.0
     energy_match: bool = False
+    # Figures that start between two clip beats (`figures.figure_states`): a clip danced at a ratio that lays a
+    # fraction of a beat on a bar carries on across bars instead of being cut every bar.
+    between_beats: bool = True
 
 
 DEFAULT_SETTINGS = Settings()
@@ -219,7 +222,7 @@ class _Bars:
                  style: str | None, settings: Settings, match: FigureMatch | None,
                  form: SongForm | None = None, kinetics: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.library, self.grid, self.rng, self.settings, self.match = library, grid, rng, settings, match
-        starts, ratios = self.starts, self.ratios = figure_states(library, grid, style)
+        starts, ratios = self.starts, self.ratios = figure_states(library, grid, style, settings.between_beats)
         self.nb = nb = len(library.beats)
         self.too_short = DanceNetError(f"the motion library has no clip with {grid.meter + 1} beats or more to cut "
                                        "a figure from; add longer clips (a few bars each)")

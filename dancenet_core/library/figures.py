@@ -73,13 +73,14 @@ def clip_ibi_s(library: MotionLibrary) -> np.ndarray:
     return ibi
 
 
-def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tuple[np.ndarray, np.ndarray]:
+def figure_states(library: MotionLibrary, grid: Grid, style: str | None,
+                  between_beats: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The figures the plan chooses from: (start beat, clip beats per song beat) pairs. Each clip is tried at the
     ratios (`RATIOS`) that play its median beat near its captured speed on the song's median beat, at least at its
     nearest; a ratio under 1 also from the clip beats where the song's bars fall within a clip's bar. Where a ratio
     lays a fraction of a beat on a bar (2/3 of a clip beat per song beat on a 4/4 bar: 8/3), the figure that carries
     on from one starts where it ends, between two clip beats (`START_DECIMALS`), so that a clip danced at that ratio
-    is not cut every bar."""
+    is not cut every bar (`between_beats`)."""
     song_ibi = float(np.median(np.diff(grid.beats))) if len(grid.beats) > 1 else 60.0 / DEFAULT_BPM
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.abs(np.log(np.array(RATIOS)[None, :] * clip_ibi_s(library)[:, None] / song_ibi))
@@ -92,8 +93,9 @@ def figure_states(library: MotionLibrary, grid: Grid, style: str | None) -> tupl
         whole = abs(span - round(span)) < 1e-9
         every = int(round(span)) if r < 1 and whole else None
         s = figure_starts(library, grid.meter, style, every).astype(np.float64)
-        if not whole:  # a fraction of a beat a bar: the bars in between start between two beats, for the clips
-            # the ratio plays within the speed limit (the others dance it only where nothing else fits)
+        if between_beats and not whole:  # a fraction of a beat a bar: the bars in between start between two
+            # beats, for the clips the ratio plays within the speed limit (the others dance it only where nothing
+            # else fits)
             turns = Fraction(span).limit_denominator(6).denominator
             fit = s[in_range[library.beat_clip[s.astype(np.int64)], k]]
             s = np.concatenate([s, (fit[:, None] + span * np.arange(1, turns)[None]).ravel()])
