@@ -330,10 +330,11 @@ def _not_sampled(why: str) -> tuple[Motion, str]:
 def _read_clips(items: Sequence[tuple[str, str, ClipHints, Callable[[], tuple[Motion, str]]]],
                 report: Callable[[str], object],
                 progress: StageProgress | None, should_cancel: Callable[[], bool] | None, workers: int = 1
-                ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str]]:
+                ) -> tuple[list[tuple[str, str, Motion, ClipAnalysis]], list[str], list[str]]:
     """Each (shown name, clip name, hints, read) read and analysed, by `workers` processes side by side where
-    there are several (forked: nothing is imported again), between cancel checks: the clips in order, and a
-    "left out ..." line (also reported) for each that could not be read."""
+    there are several (forked: nothing is imported again), between cancel checks: the clips in order, the
+    convention each one's skeleton was read in, and a "left out ..." line (also reported) for each that could not
+    be read."""
     results: list[tuple[str, str, Motion, ClipAnalysis] | str] = []
     if workers > 1 and len(items) > 1 and "fork" in mp.get_all_start_methods():
         pool = ProcessPoolExecutor(min(workers, len(items)), mp_context=mp.get_context("fork"),

@@ -48,6 +48,7 @@ from .figures import (
     figure_states,
     nearest_beat,
     stretch_kinetics,
+    within_clip,
 )
 from .match import FigureMatch, MatchModel
 from .store import MotionLibrary
@@ -103,9 +104,9 @@ class Settings:
     # past one standard deviation each lies (`stretch_kinetics`), so that the plan does not lay the library's
     # extremes back to back where no dancer did.
     pile: float = 0.05
-    # The music's energy ranks are shifted by this much (clipped to [0, 1])
-    # before figures are matched to them: with `energy_match`, `plan_at_clips_energy` sets it so that each dance
-    # moves as fast as the clips do on average. Off: it also takes each song's own energy away (a quiet rumba danced
+    # The music's energy ranks are shifted by this much (clipped to [0, 1]) before figures are matched to them:
+    # with `energy_match`, `plan_at_clips_energy` sets it so that each dance moves as fast as the clips do on
+    # average. Off: it also takes each song's own energy away (a quiet rumba danced
     # at the library's mean), and on the Dance with Melody folds it doubled FID_g (docs/experiments.md).
     energy_shift: float = 0.0
     energy_match: bool = False
@@ -287,8 +288,7 @@ class _Bars:
         a, n = self.grid.bars[b]
         song_s = self.grid.beats[a + n] - self.grid.beats[a]
         end = starts + ratios * n
-        last = np.minimum(np.ceil(end - 1e-9).astype(np.int64), self.nb - 1)
-        fits = (end <= self.nb - 1) & (library.beat_clip[last] == self.clip)
+        fits = within_clip(library, self.clip, end)
         clip_s = (beat_frames(library, end) - beat_frames(library, starts)) / library.fps
         with np.errstate(divide="ignore", invalid="ignore"):
             log_speed = np.log(clip_s / song_s)
@@ -440,9 +440,7 @@ def _carried_to_the_end(library: MotionLibrary, figures: list[Figure], end_s: fl
         return figures
     prev, last = figures[-2:]
     merged = Figure(prev.start, prev.beats + last.beats, np.concatenate([prev.times, last.times[1:]]), prev.ratio)
-    if merged.end > len(library.beats) - 1 or (library.beat_clip[min(int(np.ceil(merged.end - 1e-9)),
-                                                                     len(library.beats) - 1)]
-                                               != library.beat_clip[beat_index(prev.start)]):
+    if not within_clip(library, library.beat_clip[beat_index(prev.start)], np.array(merged.end)):
         return figures
     clip_s = float(np.diff(beat_frames(library, np.array([merged.start, merged.end])))[0]) / library.fps
     if _speed_limit_excess(np.log(clip_s / (merged.times[-1] - merged.times[0]))) > 0:

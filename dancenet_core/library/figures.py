@@ -108,6 +108,14 @@ def figure_states(library: MotionLibrary, grid: Grid, style: str | None,
     return np.concatenate(starts), np.concatenate(ratios)
 
 
+def within_clip(library: MotionLibrary, clip: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Whether figures of the clips `clip` that end at library beats `ends` (maybe between two) end within their
+    clip: the clip goes on that far."""
+    nb = len(library.beats)
+    last = np.minimum(np.ceil(np.asarray(ends) - 1e-9).astype(np.int64), nb - 1)
+    return (np.asarray(ends) <= nb - 1) & (library.beat_clip[last] == clip)
+
+
 def beat_index(position: np.ndarray) -> np.ndarray:
     """The library beat at or before each (maybe fractional) beat position: its clip and energy."""
     return np.floor(np.asarray(position) + 10.0 ** -START_DECIMALS).astype(np.int64)
