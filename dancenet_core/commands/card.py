@@ -1,4 +1,5 @@
-"""`dancenet card dancenet|style|motion-style`: rewrite a model card from trained weights, without retraining.
+"""`dancenet card dancenet|style|motion-style|library`: rewrite a model card from trained weights (or the shipped
+motion library's from its arrays), without retraining.
 DanceNet's card measures the weights on the test songs (with and without the foot clean-up and the beat lock) as
 it goes, and keeps the measured tables of the card it rewrites."""
 
@@ -15,12 +16,14 @@ from ..environment import WEIGHTS_DIR, default_data_dir
 from ..errors import DanceNetError
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.test_split import evaluate_on_test_split
+from ..library.store import DEFAULT_LIBRARY
 from ..nets.bundle import DEFAULT_BUNDLE, DanceNetBundle
 from ..nets.footfix import WEIGHTS as FOOTFIX_WEIGHTS
 from ..training.cards import (
     dancenet_card,
     kept_sections,
     validation_sections,
+    write_library_card,
     write_motion_style_card,
     write_style_card,
 )
@@ -52,6 +55,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     m = sub.add_parser("motion-style", help="the motion style model card from the metrics in its weights")
     m.add_argument("--weights", type=Path, default=MOTION_STYLE_WEIGHTS, help="weights file (the card goes beside it)")
     m.set_defaults(handler=_motion_style)
+    lib = sub.add_parser("library", help="the shipped motion library's card from its arrays (its measured "
+                         "sections kept)")
+    lib.add_argument("--library", type=Path, default=DEFAULT_LIBRARY, help="the built library (the card goes beside "
+                     "it)")
+    lib.set_defaults(handler=_library)
 
 
 def _dancenet(args: argparse.Namespace) -> int:
@@ -83,4 +91,9 @@ def _style(args: argparse.Namespace) -> int:
 
 def _motion_style(args: argparse.Namespace) -> int:
     print(write_motion_style_card(args.weights))
+    return 0
+
+
+def _library(args: argparse.Namespace) -> int:
+    print(write_library_card(args.library))
     return 0

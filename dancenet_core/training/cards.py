@@ -1,12 +1,15 @@
 """The model cards (Markdown beside the shipped weights), written from what the weights store and from
 measurements, so a card can be rewritten without retraining: the style classifier's, the motion style
-classifier's and DanceNet's (`dancenet card ...`)."""
+classifier's, DanceNet's and the shipped motion library's (`dancenet card ...`)."""
 
 from __future__ import annotations
 
 import json
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+
+import numpy as np
 
 from ..atomic import write_text
 from ..constants import WARP_RANGE
@@ -17,6 +20,7 @@ from ..errors import DanceNetError
 from ..evaluation.metrics import balanced_accuracy
 from ..evaluation.motion_style import DEFAULT_WEIGHTS as MOTION_STYLE_WEIGHTS
 from ..evaluation.motion_style import FPS, HOP_S, MODEL_CARD, N_INPUTS, MotionStyleModel
+from ..library.store import DEFAULT_LIBRARY, LIBRARY_VERSION, MotionLibrary
 from ..music.features import FEATURE_VERSION
 from ..music.style import (
     BASELINE_WEIGHTS,
@@ -368,15 +372,92 @@ def write_motion_style_card(weights: Path = MOTION_STYLE_WEIGHTS) -> Path:
 VALIDATION_HEADING = "## Settings chosen on the validation songs (`dancenet validate`)"
 
 
-def kept_sections(card: Path) -> list[str]:
-    """The measured tables of an existing card, from its validation heading to its end, verbatim: they come from
-    `dancenet validate` and `dancenet evaluate` runs that the card command does not repeat, so a rewritten card
+def kept_sections(card: Path, heading: str = VALIDATION_HEADING) -> list[str]:
+    """The measured tables of an existing card, from `heading` to its end, verbatim: they come from runs (`dancenet
+    validate`, `dancenet evaluate`, a library's checks) that the card command does not repeat, so a rewritten card
     keeps them, and the card stays their one home."""
     if not card.is_file():
         return []
     text = card.read_text()
-    at = text.find("\n" + VALIDATION_HEADING + "\n")
+    at = text.find("\n" + heading + "\n")
     return [] if at < 0 else ["", text[at + 1:].rstrip("\n")]
+
+
+LIBRARY_CARD = DEFAULT_LIBRARY.with_name("CMU_LIBRARY_CARD.md")
+LIBRARY_MEASURED_HEADING = "## Measured (kept when the card is written again)"
+
+
+def library_card(library: MotionLibrary, size_bytes: int, kept: Sequence[str] = ()) -> str:
+    """Markdown: what the shipped motion library holds, read from its arrays (clips, minutes, styles, the tempi and
+    meters its build read, the skeletons it read them from), how it is built and its terms; `kept`: the measured
+    sections of the card it replaces (`kept_sections` with `LIBRARY_MEASURED_HEADING`)."""
+    minutes = np.diff(library.clip_starts) / library.fps / 60
+    assumed = np.array([s.startswith("tempo: assumed") for s in library.source])
+    rows = []
+    for style in sorted(set(library.styles)):
+        c = np.array([s == style for s in library.styles])
+        meters = Counter(int(m) for m in library.meter[c])
+        rows.append(f"| {style} | {c.sum()} | {minutes[c].sum():.1f} | {library.tempo_bpm[c].min():.0f}-"
+                    f"{library.tempo_bpm[c].max():.0f} | {', '.join(f'{m}/4: {n}' for m, n in sorted(meters.items()))} "
+                    f"| {assumed[c].sum()} |")
+    skeletons = Counter(library.skeletons) if library.skeletons else Counter({"-": library.num_clips})
+    height = float(np.ptp(library.skeleton.rest_positions()[:, 1]))
+    return "\n".join([
+        "# Shipped motion library card",
+        "",
+        f"`{DEFAULT_LIBRARY.name}` ({size_bytes / 1e6:.1f} MB, `{LIBRARY_VERSION}`): the clips the motion-library "
+        "engine dances when a user names no library of their own (`dancenet generate SONG --engine library`, the "
+        "add-on's Motion Library engine with the shipped library). Not trained: built from capture by `python "
+        "scripts/build_default_library.py` (from `$DANCENET_DATA/cmu_dance`; never at run time, nothing is "
+        "downloaded), which gives the same bytes every time. This card is written from the file by `dancenet card "
+        "library`.",
+        "",
+        "## Data",
+        "",
+        f"{library.num_clips} dance trials of the CMU Motion Capture Database (mocap.cs.cmu.edu), "
+        f"{minutes.sum():.1f} minutes at {library.fps:g} fps, {len(library.beats)} beats; each clip's style is the "
+        "dance CMU's index gives its subject. Only the built arrays ship (rotations as float16, compressed), no "
+        "BVH file.",
+        "",
+        "| style | clips | minutes | tempo read (BPM) | meter | tempo assumed |",
+        "|---|---|---|---|---|---|",
+        *rows,
+        "",
+        "## Build",
+        "",
+        "Read as a user's folder of the same clips is (`dancenet library build`): each skeleton through the bone "
+        f"mapper ({', '.join(f'{k}: {n}' for k, n in sorted(skeletons.items()))} clips), onto a dancer "
+        f"{height:.2f} m tall at rest (the clips' mean bones), at {library.fps:g} fps, each on the floor under "
+        "the body's lowest point. Each clip's tempo and beats are read from its motion, its meter from the motion "
+        "or its style's; a clip too short to read takes the library's tempo (\"tempo assumed\"). Clips whose "
+        "tempo the analysis is unsure of (confidence under 0.25): "
+        f"{int((library.confidence < 0.25).sum())} of {library.num_clips}.",
+        "",
+        "## Terms",
+        "",
+        "CMU's: free for all uses, in products sold commercially too, but the data may not be resold as motion "
+        "capture, even converted. The copies it was built from appear to be AMASS conversions (AMASS: "
+        "non-commercial research only), so the commercial mode does not dance it (docs/licence.md, `NOTICE`).",
+        "",
+        "## Limits",
+        "",
+        "Few styles, most of its minutes salsa; the dances it makes are the clips' own figures cut on the song's "
+        "bars, so a style it lacks is danced with the nearest it has. A library of one's own clips (any humanoid "
+        "skeleton, BVH or FBX: docs/library.md) replaces it.",
+        *kept,
+        "",
+    ])
+
+
+def write_library_card(path: Path = DEFAULT_LIBRARY) -> Path:
+    """Write the shipped library's card beside it from its arrays, keeping the card's measured sections."""
+    try:
+        library = MotionLibrary.load(path)
+    except ValueError as e:
+        raise DanceNetError(f"{e}; rebuild it with python scripts/build_default_library.py") from e
+    card = path.with_name(LIBRARY_CARD.name)
+    write_text(card, library_card(library, path.stat().st_size, kept_sections(card, LIBRARY_MEASURED_HEADING)))
+    return card
 
 
 def validation_sections(folder: Path | None) -> list[str]:

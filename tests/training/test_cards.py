@@ -60,3 +60,26 @@ def test_card_refuses_a_single_measurement_setting(tmp_path: Path, capsys: pytes
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "leave out --footfix and --no-beat-lock" in err
     assert not (tmp_path / "CARD.md").exists()
+
+
+def test_the_library_card_is_written_from_its_arrays_and_keeps_its_measured_sections(tmp_path: Path) -> None:
+    """The shipped library's card: its table counts the file's own clips and minutes by style, and a rewrite keeps
+    the measured sections below `LIBRARY_MEASURED_HEADING` byte for byte."""
+    import shutil
+
+    from dancenet_core.library.store import DEFAULT_LIBRARY, MotionLibrary
+    from dancenet_core.training.cards import LIBRARY_MEASURED_HEADING, write_library_card
+
+    path = tmp_path / DEFAULT_LIBRARY.name
+    shutil.copy(DEFAULT_LIBRARY, path)
+    library = MotionLibrary.load(path)
+    card = write_library_card(path)
+    text = card.read_text()
+    for style in set(library.styles):
+        clips = sum(s == style for s in library.styles)
+        assert f"| {style} | {clips} | " in text
+    assert f"{library.num_clips} dance trials" in text and LIBRARY_MEASURED_HEADING not in text
+    measured = f"\n{LIBRARY_MEASURED_HEADING}\n\n| figure | 1.23 |\n"
+    card.write_text(text + measured)
+    assert write_library_card(path).read_text().endswith(measured)
+    assert main(["card", "library", "--library", str(tmp_path / "none.npz")]) == 2
