@@ -24,10 +24,16 @@ from ..skeleton import BODY_JOINTS, Skeleton
 from .analysis import FEATURE_DIM, ClipAnalysis, with_assumed_tempi
 from .loops import danced_around
 
-LIBRARY_VERSION = "motion-library-7"  # change whenever what a build computes changes
+LIBRARY_VERSION = "motion-library-8"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
 # The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
+# A joint's steps are bounded by at least this much a frame (m): a joint a hand-keyed clip never moves (feet planted to
+# the last digit) bounds no step.
+MIN_STEP_M = 1e-3
+# A clip whose root stays within this much on the floor (each way) is danced as exported "in place": its standing
+# feet slide by the travel taken out of it, and the dance gives it back (`transitions.hold_stance`).
+IN_PLACE_M = 0.5
 DEFAULT_LIBRARY = WEIGHTS_DIR / "cmu_dance_library.npz"
 
 
@@ -108,10 +114,11 @@ class MotionLibrary:
 
     @cached_property
     def step_p99(self) -> np.ndarray:
-        """[body joints]: each joint's 99th percentile of its steps (frames with one before them)."""
+        """[body joints]: each joint's 99th percentile of its steps (frames with one before them), at least
+        `MIN_STEP_M`."""
         moved = np.ones(len(self.rotations), bool)
         moved[self.clip_starts[:-1]] = False
-        return np.percentile(self.joint_steps[moved], 99, axis=0)
+        return np.maximum(np.percentile(self.joint_steps[moved], 99, axis=0), MIN_STEP_M)
 
     @cached_property
     def peak_ratios(self) -> np.ndarray:
@@ -119,7 +126,15 @@ class MotionLibrary:
         clip moves faster than its dancers ever do elsewhere (a leap, or a capture's glitch)."""
         moved = np.ones(len(self.rotations), bool)
         moved[self.clip_starts[:-1]] = False
-        return (self.joint_steps / np.maximum(np.percentile(self.joint_steps[moved], 99.9, axis=0), 1e-9)).max(axis=1)
+        return (self.joint_steps / np.maximum(np.percentile(self.joint_steps[moved], 99.9, axis=0), MIN_STEP_M)
+                ).max(axis=1)
+
+    @cached_property
+    def in_place(self) -> np.ndarray:
+        """[clips]: whether each clip's root stays over one spot (within `IN_PLACE_M` on the floor each way)."""
+        floor = self.root_positions[:, [0, 2]]
+        return np.array([np.ptp(floor[a:b], axis=0).max() <= IN_PLACE_M
+                         for a, b in zip(self.clip_starts[:-1], self.clip_starts[1:], strict=True)])
 
     @cached_property
     def step_ratios(self) -> np.ndarray:

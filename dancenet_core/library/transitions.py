@@ -6,7 +6,7 @@ so that its first frame stands where the run before it would have gone on to (it
 and faces the same way. At each cut the difference between that run's continuation and the new run (joint
 rotations and the root, over the two frames before the cut) fades out over `CUT_BLEND_S` with the same
 quintic as continuing a dance (no jump in place, speed or acceleration), as game engines inertialise. Last, the
-root is moved on the floor so that a standing foot stays put (`hold_stance`).
+root is moved on the floor so that a standing foot steps as in its clip, not as a blend drags it (`hold_stance`).
 """
 
 from __future__ import annotations
@@ -140,6 +140,8 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     turn, shift = -float(heading(rot[:1, 0])[0]), np.zeros(2)
     placed_rot, placed_root = np.empty_like(rot), np.empty_like(root)
     contact = np.zeros((n, len(TOE_ENDS)), bool)  # the source clips' foot contacts, before any blend
+    # the source clips' own toe steps on the floor, before any blend (none for an in-place clip: see `hold_stance`)
+    own_toes = np.zeros((n - 1, len(TOE_ENDS), 2))
     own_steps = np.zeros((n - 1, BODY_JOINTS))  # the source clips' own steps, before any blend (0 across a cut)
     blends: list[int] = []  # frames each cut's offset takes to fade
     bounds = [0, *cuts, n]
@@ -157,7 +159,10 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
             turn, shift = _follow(*turned(nrot, nroot, turn, shift), rot[a], root[a])
         placed_rot[a:b], placed_root[a:b] = turned(rot[a:b], root[a:b], turn, shift)
         source = Motion(placed_rot[a:b], placed_root[a:b], fps, library.skeleton)
-        contact[a:b] = foot_contacts(source.end_effectors()[:, list(TOE_ENDS)], fps, speed=HOLD_SPEED_MPS) > 0
+        toes = source.end_effectors()[:, list(TOE_ENDS)]
+        contact[a:b] = foot_contacts(toes, fps, speed=HOLD_SPEED_MPS) > 0
+        if not library.in_place[clip[a]]:
+            own_toes[a : b - 1] = np.diff(toes[:, :, [0, 2]], axis=0)
         own_steps[a : b - 1] = np.linalg.norm(np.diff(source.positions()[:, :BODY_JOINTS], axis=0), axis=-1)
         # what the blend's steps may reach: from the step into frame a (none in the source) on
         bound = np.maximum(library.step_p99, np.concatenate([np.zeros((1, BODY_JOINTS)), own_steps[a : b - 1]]))
@@ -172,19 +177,25 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
     step_bound = np.maximum(library.step_p99, own_steps)
-    return Rendered(Motion(placed_rot, hold_stance(motion, stance, step_bound), fps, library.skeleton), cuts, blends,
-                    step_bound)
+    return Rendered(Motion(placed_rot, hold_stance(motion, stance, step_bound, own_toes), fps, library.skeleton), cuts,
+                    blends, step_bound)
 
 
-def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None) -> np.ndarray:
+def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None,
+                own: np.ndarray | None = None) -> np.ndarray:
     """Root positions [T, 3] moved on the floor so that a foot standing from one frame to the next (`stance`
-    [T - 1, 2]: the source clip's foot contact at both) stays where it is (two: their mean step), the body carried by
-    the standing foot as a dancer's is; the contacts are the source's so that a blend's motion of a planted foot is
-    held too. The correction is smoothed (`HOLD_SMOOTH_FRAMES`), so a held foot creeps a little at a contact's ends.
+    [T - 1, 2]: the source clip's foot contact at both) steps as it does in its source clip (`own` [T - 1, 2, 2]:
+    each toe's step on the floor there, placed and time-warped; without it, or 0 for a clip exported in place,
+    stays where it is), two standing feet by their mean step, the body carried by the standing foot as a dancer's
+    is. The contacts are the source's, so that a blend's motion of a planted foot is taken back. The correction is
+    smoothed (`HOLD_SMOOTH_FRAMES`).
 
-    Why: the capture's toes creep while standing, the time-warp speeds that creep up and a blend moves a planted
-    foot; moving the root rather than the legs keeps every pose of the capture. Unsmoothed, the correction shakes
-    the body (docs/experiments.md).
+    Why: a blend moves a planted foot, and an in-place clip's standing feet slide by the travel taken out of it;
+    moving the root rather than the legs keeps every pose of the capture and turns the in-place steps into travel.
+    A captured foot's own glide or creep while it stands (a swivel, a ballroom dancer's foot gliding on the floor:
+    half the dancers' contact frames slide) is the dancers' and is kept: taking it away too moved the whole body in
+    jerks at each contact's start and end, the library's dances' torsos accelerating more than any dancer's
+    (docs/experiments.md).
 
     With `step_limit` (how far each body joint may step, [BODY_JOINTS] or per step [T - 1, BODY_JOINTS]: its 99th
     percentile, or its source clip's own step where that is further) a frame's correction is scaled down (by
@@ -193,6 +204,8 @@ def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | Non
     a cut."""
     toes = motion.end_effectors()[:, list(TOE_ENDS)]
     step = np.diff(toes[:, :, [0, 2]], axis=0)
+    if own is not None:
+        step = step - own
     count = stance.sum(1, keepdims=True)
     slip = (step * stance[..., None]).sum(1) / np.maximum(count, 1)
     root = motion.root_positions.copy()
