@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from ..motion import Motion
 from ..representation import foot_contacts, heading
 from ..shaping.continuation import _fade
+from ..shaping.floor import floor_lift, lowest_point
 from ..shaping.placing import sample_frames, turned
 from ..skeleton import BODY_JOINTS, TOE_ENDS
 from .store import MotionLibrary
@@ -40,6 +41,9 @@ HOLD_SPEED_MPS = 0.5
 # The hold's root correction is smoothed over this many frames (a Gaussian's sigma): one that starts and stops
 # with each contact shakes the body (see `hold_stance`).
 HOLD_SMOOTH_FRAMES = 2.0
+# A blend between two poses can take a foot (or a hand in floor work) through the floor that neither pose has there:
+# the body is lifted, easing in and out, where its lowest point sinks further than this under the floor.
+SINK_M = 0.04
 
 
 @dataclass
@@ -177,8 +181,9 @@ def render(library: MotionLibrary, figures: list[Figure], start_s: float, end_s:
     stance[np.array(cuts, np.int64) - 1] = False  # a cut's step is no stance of one clip
     motion = Motion(placed_rot, placed_root, fps, library.skeleton)
     step_bound = np.maximum(library.step_p99, own_steps)
-    return Rendered(Motion(placed_rot, hold_stance(motion, stance, step_bound, own_toes), fps, library.skeleton), cuts,
-                    blends, step_bound)
+    held = Motion(placed_rot, hold_stance(motion, stance, step_bound, own_toes), fps, library.skeleton)
+    held.root_positions[:, 1] += floor_lift(lowest_point(held) + SINK_M)
+    return Rendered(held, cuts, blends, step_bound)
 
 
 def hold_stance(motion: Motion, stance: np.ndarray, step_limit: np.ndarray | None = None,

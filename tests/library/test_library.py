@@ -22,11 +22,12 @@ from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
 from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
 from dancenet_core.library.store import MotionLibrary, library_path
-from dancenet_core.library.transitions import Figure, cut_steps, hold_stance, render
+from dancenet_core.library.transitions import SINK_M, Figure, cut_steps, hold_stance, render
 from dancenet_core.motion import Motion
 from dancenet_core.music.features import FPS as MUSIC_FPS
 from dancenet_core.music.features import N_FEATURES, ONSET_COL, MusicAnalysis
 from dancenet_core.request import DanceRequest
+from dancenet_core.shaping.floor import floor_track, lowest_point
 from dancenet_core.shaping.takes import shape_takes
 from dancenet_core.skeleton import BODY_JOINTS, DEFAULT_SKELETON, JOINT_INDEX, TOE_ENDS
 
@@ -344,6 +345,23 @@ def test_a_clips_own_creep_is_kept() -> None:
     assert away.sum() > 0.3 * len(speed)
     # the clips' 0.4 m/s, played within the time-warp's range (held still, it would be near 0)
     assert 0.3 < np.median(speed[away]) < 0.5
+
+
+def test_a_blend_does_not_take_the_body_through_the_floor() -> None:
+    """Two clips on the floor, one upright and one leaning its legs far forward: halfway through a blend the root
+    stands between the two heights while the legs lean half as far, a foot some centimetres under the floor that
+    neither clip puts there. The body is lifted where it sinks past `SINK_M`."""
+    clips = []
+    for k, lean in enumerate((0.0, 0.8)):
+        m = stander(30, 110, drift_mps=0.0, phase=2.0 * k, lean=lean)
+        m.root_positions[:, 1] -= floor_track(m, body=True)
+        clips.append((f"lean{k}", m))
+    lib = library_of(*clips)
+    assert min(lowest_point(lib.clip(c)).min() for c in range(lib.num_clips)) > -0.01
+    # poses weigh nothing at a cut: the plan cuts between the two
+    dance = choreograph(lib, song(40, 110), seed=2, settings=Settings(noise=1.0, pose=0.0, velocity=0.0))[0]
+    assert {f["clip"] for f in dance.report.figures} == {"lean0", "lean1"}
+    assert lowest_point(dance.motion).min() >= -SINK_M - 1e-6
 
 
 def test_generate_reports_the_copied_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
