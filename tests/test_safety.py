@@ -320,7 +320,9 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGKILL],
                          ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])  # SIGHUP: the terminal closed
 def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: signal.Signals) -> None:
-    song = click_song(tmp_path / "long.wav", 150.0, rate=11025)
+    # long enough that the analysis is still running half a second after its workers start on a quiet machine (a
+    # 150-s song could finish first, and a signal during the exit is no interruption)
+    song = click_song(tmp_path / "long.wav", 600.0, rate=11025)
     env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
     with (tmp_path / "stderr").open("w") as log:  # a file, not a pipe: a worker left behind would hold a pipe open
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "analyze", str(song), "--no-cache"],
