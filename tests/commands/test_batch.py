@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 import soundfile as sf
-from made_up import music
+from made_up import as_a_terminal_signals_it, music
 
 from dancenet_core.catalog import RECORDS, CatalogSong, read_catalog, request_id, run_catalog
 from dancenet_core.catalog.cluster import _ray_song
@@ -237,19 +237,13 @@ def test_kill_9_of_the_whole_batch_then_the_same_command_gives_the_uninterrupted
     assert not any(TEMP_MARK in p.name for p in (out / RECORDS).iterdir())
 
 
-def _interrupt_as_a_terminal_sends_it() -> None:
-    """In the batch's process: SIGINT back to its default action. A suite started in the background by a shell
-    without job control (`make test &` in a script) ignores SIGINT, and the batch would inherit that."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds the workers through /proc")
 def test_ctrl_c_stops_the_batch_and_its_workers_and_keeps_what_was_done(songs: Path, reference: dict,
                                                                        tmp_path: Path) -> None:
     out = tmp_path / "out"
     run = subprocess.Popen(_command(songs, out), cwd=ROOT, env=_cold(tmp_path), stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True, start_new_session=True,
-                           preexec_fn=_interrupt_as_a_terminal_sends_it)
+                           preexec_fn=as_a_terminal_signals_it)
     _wait_for(run, out, 1)
     workers = _children(run.pid)
     os.killpg(run.pid, signal.SIGINT)  # what Ctrl-C in its terminal sends
