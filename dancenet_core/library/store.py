@@ -27,13 +27,13 @@ from .loops import danced_around
 LIBRARY_VERSION = "motion-library-8"  # change whenever what a build computes changes
 LIBRARY_FPS = 25.0
 CLIP_SUFFIXES = (".bvh", ".fbx")  # FBX files only Blender reads (the add-on's Build Library)
-# The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
 # A joint's steps are bounded by at least this much a frame (m): a joint a hand-keyed clip never moves (feet planted to
 # the last digit) bounds no step.
 MIN_STEP_M = 1e-3
 # A clip whose root stays within this much on the floor (each way) is danced as exported "in place": its standing
 # feet slide by the travel taken out of it, and the dance gives it back (`transitions.hold_stance`).
 IN_PLACE_M = 0.5
+# The library used when a user names none: CMU's dance clips (scripts/build_default_library.py builds it).
 DEFAULT_LIBRARY = WEIGHTS_DIR / "cmu_dance_library.npz"
 
 
@@ -112,22 +112,23 @@ class MotionLibrary:
         how fast the library's own dancers move, which its cuts are held to (choreography, evaluation)."""
         return self.joint_motion[0]
 
-    @cached_property
-    def step_p99(self) -> np.ndarray:
-        """[body joints]: each joint's 99th percentile of its steps (frames with one before them), at least
-        `MIN_STEP_M`."""
+    def _step_percentile(self, q: float) -> np.ndarray:
+        """[body joints]: each joint's q-th percentile of its steps (frames with one before them in their clip), at
+        least `MIN_STEP_M`."""
         moved = np.ones(len(self.rotations), bool)
         moved[self.clip_starts[:-1]] = False
-        return np.maximum(np.percentile(self.joint_steps[moved], 99, axis=0), MIN_STEP_M)
+        return np.maximum(np.percentile(self.joint_steps[moved], q, axis=0), MIN_STEP_M)
+
+    @cached_property
+    def step_p99(self) -> np.ndarray:
+        """[body joints]: each joint's 99th percentile of its steps (`_step_percentile`)."""
+        return self._step_percentile(99)
 
     @cached_property
     def peak_ratios(self) -> np.ndarray:
         """[N]: each frame's largest body-joint step over that joint's 99.9th percentile in the library: where a
         clip moves faster than its dancers ever do elsewhere (a leap, or a capture's glitch)."""
-        moved = np.ones(len(self.rotations), bool)
-        moved[self.clip_starts[:-1]] = False
-        return (self.joint_steps / np.maximum(np.percentile(self.joint_steps[moved], 99.9, axis=0), MIN_STEP_M)
-                ).max(axis=1)
+        return (self.joint_steps / self._step_percentile(99.9)).max(axis=1)
 
     @cached_property
     def in_place(self) -> np.ndarray:

@@ -44,8 +44,9 @@ def floor_track(motion: Motion, window_s: float = 2.0, smooth_s: float = 0.5, bo
 
 
 def floor_lift(low: np.ndarray) -> np.ndarray:
-    """Root lift [T] (metres) that keeps the lowest toe end `low` [T] at or above the floor (y = 0): the dip,
-    widened and smoothed so the lift eases in and out rather than jerking, and never less than the dip."""
+    """Root lift [T] (metres) that keeps the lowest point `low` [T] (a toe end, or the body's `lowest_point`) at or
+    above the floor (y = 0): the dip, widened and smoothed so the lift eases in and out rather than jerking, and
+    never less than the dip."""
     need = np.maximum(0.0, -low)
     return np.maximum(need, gaussian_filter1d(maximum_filter1d(need, 9), 2.0, mode="nearest"))
 

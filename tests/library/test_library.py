@@ -20,7 +20,7 @@ from dancenet_core.evaluation.metrics import foot_sliding
 from dancenet_core.generate import generate_dance
 from dancenet_core.library.analysis import analyze_clip
 from dancenet_core.library.build import build_library
-from dancenet_core.library.choreography import LONG_RUN_BARS, Settings, choreograph, song_grid
+from dancenet_core.library.choreography import LONG_RUN_BARS, LibraryDance, Settings, choreograph, song_grid
 from dancenet_core.library.store import MotionLibrary, library_path
 from dancenet_core.library.transitions import SINK_M, Figure, cut_steps, hold_stance, render
 from dancenet_core.motion import Motion
@@ -315,13 +315,20 @@ def toe_travel(motion: Motion) -> float:
     return float(np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1).sum())
 
 
-def test_standing_feet_stay_put_across_cuts() -> None:
-    """A dance cut from clips whose feet stand still (hand-keyed: not a millimetre) and whose legs lean differently (a
-    blend moves the feet): the feet stay put, through the blends too."""
-    lib = library_of(*[(f"stand{k}", stander(30, bpm, drift_mps=0.0, phase=2.0 * k, lean=0.15 * k))
+def standers_dance(drift_mps: float) -> tuple[MotionLibrary, LibraryDance]:
+    """A library of three standers (`stander`: other tempi, legs leaning differently, the body creeping at
+    `drift_mps`) and a dance from it whose plan cuts between them."""
+    lib = library_of(*[(f"stand{k}", stander(30, bpm, drift_mps=drift_mps, phase=2.0 * k, lean=0.15 * k))
                        for k, bpm in enumerate((100, 112, 120))])
     dance = choreograph(lib, song(40, 108), seed=2, settings=Settings(noise=1.0))[0]
     assert dance.report.cuts, "the plan should cut between clips"
+    return lib, dance
+
+
+def test_standing_feet_stay_put_across_cuts() -> None:
+    """A dance cut from clips whose feet stand still (hand-keyed: not a millimetre) and whose legs lean differently (a
+    blend moves the feet): the feet stay put, through the blends too."""
+    _lib, dance = standers_dance(drift_mps=0.0)
     toes = dance.motion.end_effectors()[:, list(TOE_ENDS)]
     speed = np.linalg.norm(np.diff(toes[:, :, [0, 2]], axis=0), axis=-1) * FPS
     blends = np.concatenate([np.arange(c - 1, min(c + 10, len(speed))) for c in dance.report.cuts])
@@ -332,11 +339,8 @@ def test_standing_feet_stay_put_across_cuts() -> None:
 def test_a_clips_own_creep_is_kept() -> None:
     """A standing foot that creeps in its clip (a dancer's swivel, the capture's drift) creeps as much in the dance:
     the hold takes back only what a blend adds, so away from the cuts the body travels with the clip."""
-    lib = library_of(*[(f"creep{k}", stander(30, bpm, drift_mps=0.4, phase=2.0 * k, lean=0.15 * k))
-                       for k, bpm in enumerate((100, 112, 120))])
+    lib, dance = standers_dance(drift_mps=0.4)
     assert min(slide_ratio(lib.clip(c)) for c in range(lib.num_clips)) > 0.9
-    dance = choreograph(lib, song(40, 108), seed=2, settings=Settings(noise=1.0))[0]
-    assert dance.report.cuts, "the plan should cut between clips"
     root = dance.motion.root_positions[:, [0, 2]]
     speed = np.linalg.norm(np.diff(root, axis=0), axis=-1) * FPS
     away = np.ones(len(speed), bool)
